@@ -1,0 +1,9 @@
+//! The pwgs decoder library: everything a decoder needs to turn a stream into pixels, and
+//! the normative computations the encoder calls instead of re-implementing them.
+
+pub mod atomic_file;
+pub mod camera;
+pub mod gaussians;
+pub mod ply;
+pub mod rgb_image;
+pub mod raster;

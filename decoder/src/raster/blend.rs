@@ -1,0 +1,104 @@
+//! Front-to-back alpha blending of the splats of each tile.
+//!
+//! Per pixel: alpha = min(alpha_max, opacity * exp(-sigma)); splats with alpha < alpha_min
+//! are skipped; blending stops before a splat that would bring the
+//! transmittance to transmittance_min or below. Each pixel's sum runs in the tiles' fixed
+//! front-to-back order on one thread, so the image is bit-identical for any thread count.
+
+use super::project::Splat;
+use super::tiles::TileBins;
+use super::{Cutoff, RenderOptions, TILE_SIZE};
+
+const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
+
+/// Width of the smoothstep that replaces the hard alpha_min cutoff in [`Cutoff::Smooth`].
+pub const SMOOTH_CUTOFF_BAND: f32 = 1e-3;
+
+/// Alpha of a splat at offset (dx, dy) from its center, or `None` when it does not contribute.
+#[inline]
+pub fn splat_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Option<f32> {
+    let [l11, l21, l22] = s.cholesky;
+    let (p, q) = (l11 * dx + l21 * dy, l22 * dy);
+    let sigma = 0.5 * (p * p + q * q);
+    let raw = s.opacity * (-sigma).exp();
+    let alpha_min = options.projection.alpha_min as f32;
+    if raw < alpha_min {
+        return None;
+    }
+    let alpha = raw.min(options.alpha_max);
+    Some(match options.cutoff {
+        Cutoff::Hard => alpha,
+        Cutoff::Smooth => {
+            let t = ((raw - alpha_min) / SMOOTH_CUTOFF_BAND).min(1.0);
+            alpha * t * t * (3.0 - 2.0 * t)
+        }
+    })
+}
+
+/// Output buffers for one band of tiles (TILE_SIZE image rows).
+pub struct Band<'a> {
+    pub color: &'a mut [f32],
+    pub transmittance: &'a mut [f32],
+    pub depth: &'a mut [f32],
+    pub last_contributor: &'a mut [u32],
+}
+
+/// Blends tile row `ty` into `band`.
+pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, width: u32, height: u32, band: Band) {
+    for tx in 0..bins.tiles_x {
+        let t = (ty * bins.tiles_x + tx) as usize;
+        let [x0, x1, y0, y1] = bins.tile_rect(t, width, height);
+        let tw = (x1 - x0) as usize;
+        let mut trans = [1.0f32; TILE_PIXELS];
+        let mut rgb = [[0.0f32; 3]; TILE_PIXELS];
+        let mut depth = [0.0f32; TILE_PIXELS];
+        let mut last = [0u32; TILE_PIXELS];
+        let mut done = [false; TILE_PIXELS];
+        let mut remaining = tw * (y1 - y0) as usize;
+        for (k, &si) in bins.tile(t).iter().enumerate() {
+            if remaining == 0 {
+                break;
+            }
+            let s = &splats[si as usize];
+            let [bx0, bx1, by0, by1] = s.bbox;
+            for py in by0.max(y0)..by1.min(y1) {
+                let dy = s.mean[1] - (py as f32 + 0.5);
+                for px in bx0.max(x0)..bx1.min(x1) {
+                    let p = (py - y0) as usize * tw + (px - x0) as usize;
+                    if done[p] {
+                        continue;
+                    }
+                    let dx = s.mean[0] - (px as f32 + 0.5);
+                    let Some(alpha) = splat_alpha(s, dx, dy, options) else { continue };
+                    let next = trans[p] * (1.0 - alpha);
+                    if next <= options.transmittance_min {
+                        done[p] = true;
+                        remaining -= 1;
+                        continue;
+                    }
+                    let weight = alpha * trans[p];
+                    for c in 0..3 {
+                        rgb[p][c] += s.color[c] * weight;
+                    }
+                    depth[p] += s.depth * weight;
+                    trans[p] = next;
+                    last[p] = k as u32 + 1;
+                }
+            }
+        }
+        for py in y0..y1 {
+            for px in x0..x1 {
+                let p = (py - y0) as usize * tw + (px - x0) as usize;
+                // The band starts at image row y0.
+                let o = (py - y0) as usize * width as usize + px as usize;
+                for c in 0..3 {
+                    band.color[o * 3 + c] = rgb[p][c] + trans[p] * options.background[c];
+                }
+                band.transmittance[o] = trans[p];
+                let covered = 1.0 - trans[p];
+                band.depth[o] = if covered > 0.0 { depth[p] / covered } else { 0.0 };
+                band.last_contributor[o] = last[p];
+            }
+        }
+    }
+}

@@ -1,0 +1,68 @@
+//! Binning of depth-sorted splats into 16x16 pixel tiles.
+//!
+//! Splats arrive sorted front to back; a counting sort by tile keeps that order inside each
+//! tile, so no per-tile sort is needed and the result does not depend on threading.
+
+use super::TILE_SIZE;
+use super::project::Splat;
+
+/// For each tile (row-major), the splats that may touch it, front to back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TileBins {
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    /// `entries[offsets[t]..offsets[t + 1]]` are tile t's splats.
+    pub offsets: Vec<usize>,
+    /// Indices into the splat list.
+    pub entries: Vec<u32>,
+}
+
+impl TileBins {
+    /// Splat indices of tile `t`, front to back.
+    pub fn tile(&self, t: usize) -> &[u32] {
+        &self.entries[self.offsets[t]..self.offsets[t + 1]]
+    }
+
+    /// Pixel rectangle of tile `t`: x in [x0, x1), y in [y0, y1).
+    pub fn tile_rect(&self, t: usize, width: u32, height: u32) -> [u32; 4] {
+        let (tx, ty) = (t as u32 % self.tiles_x, t as u32 / self.tiles_x);
+        let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
+        [x0, (x0 + TILE_SIZE).min(width), y0, (y0 + TILE_SIZE).min(height)]
+    }
+}
+
+/// Tile range [t0, t1) covered by a pixel range [p0, p1).
+fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
+    p0 / TILE_SIZE..(p1 - 1) / TILE_SIZE + 1
+}
+
+/// Bins splats (already sorted front to back) into tiles by their pixel bounding boxes.
+pub fn bin(splats: &[Splat], width: u32, height: u32) -> TileBins {
+    let tiles_x = width.div_ceil(TILE_SIZE);
+    let tiles_y = height.div_ceil(TILE_SIZE);
+    let tile_count = (tiles_x * tiles_y) as usize;
+    let mut offsets = vec![0usize; tile_count + 1];
+    let for_each_tile = |s: &Splat, f: &mut dyn FnMut(usize)| {
+        let [x0, x1, y0, y1] = s.bbox;
+        for ty in tile_range(y0, y1) {
+            for tx in tile_range(x0, x1) {
+                f((ty * tiles_x + tx) as usize);
+            }
+        }
+    };
+    for s in splats {
+        for_each_tile(s, &mut |t| offsets[t + 1] += 1);
+    }
+    for t in 0..tile_count {
+        offsets[t + 1] += offsets[t];
+    }
+    let mut cursor = offsets.clone();
+    let mut entries = vec![0u32; offsets[tile_count]];
+    for (i, s) in splats.iter().enumerate() {
+        for_each_tile(s, &mut |t| {
+            entries[cursor[t]] = i as u32;
+            cursor[t] += 1;
+        });
+    }
+    TileBins { tiles_x, tiles_y, offsets, entries }
+}

@@ -1,0 +1,250 @@
+//! Forward rasterizer: agreement with the naive reference, with gsplat, and the hard cases.
+
+mod common_scenes;
+
+use common_scenes::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
+use pwgs_decoder::gaussians::{Gaussians, rgb_to_sh_dc};
+use pwgs_decoder::raster::{RenderOptions, rasterize, render};
+
+#[test]
+fn matches_naive_reference_on_random_scenes() {
+    for (seed, degree, n, (w, h)) in [(1u64, 3, 200, (64, 48)), (2, 0, 500, (37, 29)), (3, 1, 50, (80, 80)), (4, 2, 300, (33, 65))] {
+        let mut rng = Rng(seed);
+        let g = random_gaussians(&mut rng, n, degree);
+        let cam = camera(w, h, 0.8 * w as f32, 0.9 * w as f32, w as f32 * 0.47, h as f32 * 0.55);
+        let options = RenderOptions { background: [0.2, 0.5, 0.9], ..Default::default() };
+        let fast = render(&g, &cam, &options);
+        let (naive, _) = naive_render(&g, &cam, &options);
+        let diff = max_abs_diff(&fast, &naive);
+        assert!(diff < 1e-5, "seed {seed}: max difference {diff}");
+    }
+}
+
+/// One opaque-ish Gaussian at `mean` with isotropic scale.
+fn single(mean: [f32; 3], log_scale: f32, opacity_logit: f32, rgb: [f32; 3]) -> Gaussians {
+    let mut g = Gaussians::with_degree(0);
+    g.push(mean, [log_scale; 3], [1.0, 0.0, 0.0, 0.0], opacity_logit, &rgb.map(rgb_to_sh_dc));
+    g
+}
+
+#[test]
+fn empty_scene_is_exactly_the_background() {
+    let cam = camera(19, 7, 10.0, 10.0, 9.5, 3.5);
+    let bg = [0.25, 0.5, 0.125];
+    let out = rasterize(&Gaussians::with_degree(2), &cam, &RenderOptions { background: bg, ..Default::default() });
+    assert!(out.color.data.chunks(3).all(|p| p == bg));
+    assert!(out.transmittance.iter().all(|&t| t == 1.0));
+}
+
+/// Renders `g` and `g` plus `extra`; the extra Gaussians must not change a single value.
+fn assert_invisible(g: &Gaussians, extra: &Gaussians, cam: &pwgs_decoder::camera::Camera, what: &str) {
+    let mut both = g.clone();
+    for i in 0..extra.len() {
+        both.push(extra.means[i], extra.log_scales[i], extra.rotations[i], extra.opacity_logits[i], extra.sh_of(i));
+    }
+    let options = RenderOptions { background: [0.1, 0.2, 0.3], ..Default::default() };
+    let base = rasterize(g, cam, &options);
+    let with = rasterize(&both, cam, &options);
+    assert_eq!(base.color, with.color, "{what} changed the image");
+    assert_eq!(base.transmittance, with.transmittance, "{what} changed the alpha");
+}
+
+fn scene(seed: u64, n: usize) -> Gaussians {
+    random_gaussians(&mut Rng(seed), n, 1)
+}
+
+#[test]
+fn behind_camera_and_near_plane() {
+    let cam = camera(48, 32, 40.0, 40.0, 24.0, 16.0);
+    let g = scene(7, 60);
+    let mut extra = Gaussians::with_degree(1);
+    let sh = [0.8f32; 12];
+    extra.push([0.0, 0.0, -1.0], [0.0; 3], [1.0, 0.0, 0.0, 0.0], 5.0, &sh); // behind, large
+    extra.push([0.0, 0.0, 0.005], [-1.0; 3], [1.0, 0.0, 0.0, 0.0], 5.0, &sh); // center before near
+    assert_invisible(&g, &extra, &cam, "Gaussians behind the near plane");
+    // Straddling: center just past the near plane, extent reaching behind the camera. It is
+    // drawn (the center is visible), stays finite and covers the whole view.
+    let straddling = single([0.0, 0.0, 0.02], -2.0, 5.0, [0.9, 0.1, 0.1]);
+    let out = rasterize(&straddling, &cam, &RenderOptions::default());
+    assert!(out.color.data.iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)));
+    assert!(out.transmittance.iter().all(|&t| t < 0.05), "straddling Gaussian should cover the view");
+}
+
+#[test]
+fn needle_with_scale_ratio_1e6() {
+    let cam = camera(64, 64, 60.0, 60.0, 32.0, 32.0);
+    let mut g = Gaussians::with_degree(0);
+    let half_angle = std::f32::consts::PI / 8.0;
+    // Long axis 1e0, short axes 1e-6, rotated 45 degrees about z: a diagonal line.
+    let q = [half_angle.cos(), 0.0, 0.0, half_angle.sin()];
+    g.push([0.0, 0.0, 4.0], [0.0, (1e-6f32).ln(), (1e-6f32).ln()], q, 3.0, &[1.0, 1.0, 1.0]);
+    let options = RenderOptions::default();
+    let out = rasterize(&g, &cam, &options);
+    let (naive, _) = naive_render(&g, &cam, &options);
+    assert!(max_abs_diff(&out.color, &naive) < 1e-5);
+    // The needle is a diagonal line: pixels on the diagonal are covered, off-diagonal corners are not.
+    let alpha = |x: u32, y: u32| 1.0 - out.transmittance[(y * 64 + x) as usize];
+    assert!(
+        alpha(20, 20) > 0.4 && alpha(44, 44) > 0.4,
+        "needle missing on the diagonal: {} {} (anti-diagonal {} {})",
+        alpha(20, 20),
+        alpha(44, 44),
+        alpha(20, 44),
+        alpha(44, 20)
+    );
+    assert!(alpha(20, 44) == 0.0 && alpha(44, 20) == 0.0, "needle leaked off the diagonal");
+}
+
+#[test]
+fn full_screen_gaussian() {
+    let cam = camera(50, 30, 30.0, 30.0, 25.0, 15.0);
+    let g = single([0.0, 0.0, 3.0], 2.0, 0.0, [0.2, 0.7, 0.4]);
+    let options = RenderOptions::default();
+    let out = rasterize(&g, &cam, &options);
+    assert!(out.transmittance.iter().all(|&t| t < 0.6), "every pixel is covered");
+    assert_eq!(out.bins.entries.len(), (out.bins.tiles_x * out.bins.tiles_y) as usize, "one entry per tile");
+    let (naive, _) = naive_render(&g, &cam, &options);
+    assert!(max_abs_diff(&out.color, &naive) < 1e-5);
+}
+
+#[test]
+fn sub_pixel_gaussian_is_blurred_and_centered() {
+    let cam = camera(21, 21, 20.0, 20.0, 10.5, 10.5);
+    // Projects to (13.2, 8.7); world scale 1e-5 is far below a pixel.
+    let (u, v) = (13.2f32, 8.7f32);
+    let z = 2.0;
+    let g = single([(u - 10.5) * z / 20.0, (v - 10.5) * z / 20.0, z], (1e-5f32).ln(), 4.0, [1.0; 3]);
+    let out = rasterize(&g, &cam, &RenderOptions::default());
+    let mut sum = 0.0f64;
+    let mut centroid = [0.0f64; 2];
+    for y in 0..21u32 {
+        for x in 0..21u32 {
+            let a = 1.0 - out.transmittance[(y * 21 + x) as usize] as f64;
+            sum += a;
+            centroid[0] += a * (x as f64 + 0.5);
+            centroid[1] += a * (y as f64 + 0.5);
+        }
+    }
+    assert!(sum > 0.5, "the 0.3 px blur keeps a sub-pixel Gaussian visible ({sum})");
+    let c = centroid.map(|c| c / sum);
+    assert!((c[0] - u as f64).abs() < 0.1 && (c[1] - v as f64).abs() < 0.1, "centroid {c:?}");
+}
+
+#[test]
+fn zero_and_denormal_quaternions_are_culled() {
+    let cam = camera(32, 32, 30.0, 30.0, 16.0, 16.0);
+    let g = scene(11, 40);
+    for q in [[0.0f32; 4], [1e-40, 0.0, 0.0, 0.0], [0.0, -1e-39, 1e-41, 0.0], [f32::MIN_POSITIVE; 4]] {
+        let mut extra = Gaussians::with_degree(1);
+        extra.push([0.0, 0.0, 2.0], [-1.0; 3], q, 3.0, &[0.5; 12]);
+        assert_invisible(&g, &extra, &cam, &format!("quaternion {q:?}"));
+    }
+}
+
+#[test]
+fn opacity_clamps_at_0_99() {
+    let cam = camera(17, 17, 20.0, 20.0, 8.5, 8.5);
+    let g = single([0.0, 0.0, 2.0], -1.0, 30.0, [1.0; 3]);
+    let out = rasterize(&g, &cam, &RenderOptions::default());
+    let center_t = out.transmittance[8 * 17 + 8];
+    assert!((center_t - 0.01).abs() < 1e-6, "transmittance at the center {center_t}");
+    assert!(out.transmittance.iter().all(|&t| t >= 0.01 - 1e-6));
+}
+
+#[test]
+fn ten_thousand_gaussians_in_one_tile() {
+    let cam = camera(16, 16, 16.0, 16.0, 8.0, 8.0);
+    let mut rng = Rng(5);
+    let mut g = Gaussians::with_degree(0);
+    for _ in 0..10_000 {
+        let z = rng.uniform(1.0, 10.0);
+        let sh = [rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)];
+        g.push([rng.uniform(-0.3, 0.3) * z, rng.uniform(-0.3, 0.3) * z, z], [-4.0; 3], [1.0, 0.0, 0.0, 0.0], -3.0, &sh);
+    }
+    let options = RenderOptions::default();
+    let out = rasterize(&g, &cam, &options);
+    assert_eq!(out.bins.tile(0).len(), 10_000);
+    let (naive, _) = naive_render(&g, &cam, &options);
+    let diff = max_abs_diff(&out.color, &naive);
+    assert!(diff < 1e-5, "difference {diff}");
+}
+
+#[test]
+fn non_finite_parameters_are_culled_and_change_no_pixel() {
+    let cam = camera(40, 30, 35.0, 35.0, 20.0, 15.0);
+    let g = scene(13, 50);
+    let template = scene(14, 1);
+    for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        // Every parameter slot: 3 mean, 3 scale, 4 rotation, 1 opacity, 12 SH.
+        for slot in 0..23 {
+            let mut extra = template.clone();
+            match slot {
+                0..3 => extra.means[0][slot] = bad,
+                3..6 => extra.log_scales[0][slot - 3] = bad,
+                6..10 => extra.rotations[0][slot - 6] = bad,
+                10 => extra.opacity_logits[0] = bad,
+                _ => extra.sh[slot - 11] = bad,
+            }
+            assert_invisible(&g, &extra, &cam, &format!("{bad} in slot {slot}"));
+        }
+    }
+}
+
+#[test]
+fn principal_point_and_anisotropic_focal() {
+    let (cx, cy) = (7.25f32, 20.5f32);
+    let cam = camera(40, 24, 30.0, 45.0, cx, cy);
+    let g = single([0.0, 0.0, 3.0], -3.0, 3.0, [1.0; 3]);
+    let out = rasterize(&g, &cam, &RenderOptions::default());
+    let (mut sum, mut mx, mut my) = (0.0f64, 0.0f64, 0.0f64);
+    for y in 0..24u32 {
+        for x in 0..40u32 {
+            let a = 1.0 - out.transmittance[(y * 40 + x) as usize] as f64;
+            sum += a;
+            mx += a * (x as f64 + 0.5);
+            my += a * (y as f64 + 0.5);
+        }
+    }
+    assert!((mx / sum - cx as f64).abs() < 0.15 && (my / sum - cy as f64).abs() < 0.15, "centroid off the principal point");
+    // fx != fy stretches the footprint: the vertical extent is larger.
+    let covered = |horizontal: bool| {
+        (0..if horizontal { 40 } else { 24 })
+            .filter(|&i| {
+                let (x, y) = if horizontal { (i, 20) } else { (7, i) };
+                out.transmittance[(y * 40 + x) as usize] < 0.99
+            })
+            .count()
+    };
+    assert!(covered(false) > covered(true), "fy > fx must stretch the splat vertically");
+}
+
+#[test]
+fn tiny_and_odd_image_sizes() {
+    let g = scene(17, 80);
+    for (w, h) in [(1, 1), (1, 17), (17, 1), (33, 17), (15, 49)] {
+        let cam = camera(w, h, 0.9 * w.max(h) as f32, 0.9 * w.max(h) as f32, w as f32 / 2.0, h as f32 / 2.0);
+        let options = RenderOptions::default();
+        let out = render(&g, &cam, &options);
+        assert_eq!(out.data.len(), (w * h * 3) as usize);
+        let (naive, _) = naive_render(&g, &cam, &options);
+        let diff = max_abs_diff(&out, &naive);
+        assert!(diff < 1e-5, "{w}x{h}: difference {diff}");
+    }
+}
+
+#[test]
+fn output_is_identical_for_any_thread_count() {
+    let g = random_gaussians(&mut Rng(21), 3000, 3);
+    let cam = camera(96, 80, 80.0, 80.0, 48.0, 40.0);
+    let options = RenderOptions::default();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| rasterize(&g, &cam, &options))
+    };
+    let one = run(1);
+    let many = run(4);
+    assert_eq!(one.color, many.color);
+    assert_eq!(one.transmittance, many.transmittance);
+    assert_eq!(one.depth, many.depth);
+    assert_eq!(one.splats, many.splats);
+}

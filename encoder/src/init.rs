@@ -1,0 +1,60 @@
+//! Initial Gaussians from a point cloud, as 3DGS initializes from SfM points: one isotropic
+//! Gaussian per point, sized by the distance to its nearest neighbours, colored by the point,
+//! nearly transparent (opacity 0.1) so that training decides what stays.
+
+use kiddo::{KdTree, SquaredEuclidean};
+use pwgs_decoder::gaussians::{Gaussians, opacity_to_logit, rgb_to_sh_dc, sh_coeff_count};
+use pwgs_decoder::ply::PointCloud;
+
+/// Opacity of freshly initialized Gaussians.
+pub const INITIAL_OPACITY: f32 = 0.1;
+
+/// Neighbours averaged for the initial scale.
+const NEIGHBOURS: usize = 3;
+
+/// Smallest initial scale: coincident points would otherwise give log(0).
+const MIN_SCALE: f32 = 1e-7;
+
+/// One Gaussian per point; scale = sqrt(mean squared distance to the 3 nearest other points).
+pub fn gaussians_from_points(cloud: &PointCloud, sh_degree: u32) -> Gaussians {
+    let mut tree: KdTree<f32, 3> = KdTree::with_capacity(cloud.positions.len());
+    for (i, p) in cloud.positions.iter().enumerate() {
+        tree.add(p, i as u64);
+    }
+    let mut g = Gaussians::with_degree(sh_degree);
+    let mut sh = vec![0.0f32; sh_coeff_count(sh_degree) * 3];
+    let logit = opacity_to_logit(INITIAL_OPACITY);
+    for (p, color) in cloud.positions.iter().zip(&cloud.colors) {
+        // The nearest hit is the point itself (distance 0) unless it has duplicates, which then
+        // count as neighbours at distance 0, as in 3DGS.
+        let hits = tree.nearest_n::<SquaredEuclidean>(p, std::num::NonZero::new(NEIGHBOURS + 1).expect("non-zero"));
+        let others: Vec<f32> = hits.iter().skip(1).map(|n| n.distance).collect();
+        let mean_sq = if others.is_empty() { 1.0 } else { others.iter().sum::<f32>() / others.len() as f32 };
+        let scale = mean_sq.sqrt().max(MIN_SCALE);
+        for c in 0..3 {
+            sh[c] = rgb_to_sh_dc(color[c]);
+        }
+        g.push(*p, [scale.ln(); 3], [1.0, 0.0, 0.0, 0.0], logit, &sh);
+    }
+    g
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scale_follows_neighbour_distance_and_color_round_trips() {
+        let cloud = PointCloud {
+            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [10.0, 0.0, 0.0]],
+            colors: vec![[0.2, 0.4, 0.6]; 5],
+        };
+        let g = gaussians_from_points(&cloud, 1);
+        assert_eq!(g.len(), 5);
+        assert!((g.log_scales[0][0] - 0.0).abs() < 1e-6, "three unit neighbours give scale 1");
+        assert!(g.log_scales[4][0] > 2.0, "an isolated point gets a large scale");
+        let color = pwgs_decoder::gaussians::SH_C0 * g.sh[0] + 0.5;
+        assert!((color - 0.2).abs() < 1e-6);
+        assert!((1.0 / (1.0 + (-g.opacity_logits[0]).exp()) - INITIAL_OPACITY).abs() < 1e-6);
+    }
+}
