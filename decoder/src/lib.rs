@@ -7,3 +7,4 @@ pub mod gaussians;
 pub mod ply;
 pub mod rgb_image;
 pub mod raster;
+pub mod random_scene;

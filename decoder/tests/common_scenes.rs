@@ -2,63 +2,18 @@
 //! and cameras, and the naive reference renderer.
 #![allow(dead_code)] // each test binary uses a different part
 
-use glam::{DMat3, DVec3, Mat3, Vec3};
+use glam::{DMat3, DVec3};
 use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::{Gaussians, sh_coeff_count};
+use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::raster::sh;
 use pwgs_decoder::rgb_image::RgbImage;
 
-/// splitmix64: tiny, deterministic on every platform.
-pub struct Rng(pub u64);
+pub use pwgs_decoder::random_scene::{SplitMix64 as Rng, axis_camera as camera};
 
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [lo, hi).
-    pub fn uniform(&mut self, lo: f32, hi: f32) -> f32 {
-        let u = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
-        lo + (hi - lo) * u
-    }
-}
-
-/// A camera at the origin looking down +z (OpenCV), with the given intrinsics.
-pub fn camera(width: u32, height: u32, fx: f32, fy: f32, cx: f32, cy: f32) -> Camera {
-    Camera::new(width, height, fx, fy, cx, cy, Mat3::IDENTITY, Vec3::ZERO).unwrap()
-}
-
-/// A camera at `center` looking at `target` (OpenCV axes, world y down as "up" reference -y).
-pub fn look_at(width: u32, height: u32, focal: f32, center: Vec3, target: Vec3) -> Camera {
-    let z = (target - center).normalize();
-    let x = Vec3::new(0.0, -1.0, 0.0).cross(z).normalize();
-    let y = z.cross(x);
-    let rotation = Mat3::from_cols(x, y, z).transpose();
-    Camera::new(width, height, focal, focal, width as f32 / 2.0, height as f32 / 2.0, rotation, -(rotation * center))
-        .unwrap()
-}
-
-/// `n` random Gaussians in front of the identity camera, anisotropic and rotated, SH degree
-/// `degree`, opacities in a moderate range.
+/// Random scenes as the rasterizer tests use them: log-scales in [-4, -1.5].
 pub fn random_gaussians(rng: &mut Rng, n: usize, degree: u32) -> Gaussians {
-    let mut g = Gaussians::with_degree(degree);
-    let k = sh_coeff_count(degree) * 3;
-    for _ in 0..n {
-        let z = rng.uniform(2.0, 6.0);
-        let mean = [rng.uniform(-0.5, 0.5) * z, rng.uniform(-0.4, 0.4) * z, z];
-        let log_scale = [rng.uniform(-4.0, -1.5), rng.uniform(-4.0, -1.5), rng.uniform(-4.0, -1.5)];
-        let rotation = [rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0)];
-        let opacity = rng.uniform(-2.0, 3.0);
-        let sh: Vec<f32> =
-            (0..k).map(|j| if j < 3 { rng.uniform(-1.5, 1.5) } else { rng.uniform(-0.3, 0.3) }).collect();
-        g.push(mean, log_scale, rotation, opacity, &sh);
-    }
-    g
+    pwgs_decoder::random_scene::random_gaussians(rng, n, degree, [-4.0, -1.5])
 }
 
 /// The naive reference renderer: for every pixel, every Gaussian, in f64, depth-sorted, no

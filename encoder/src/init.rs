@@ -2,7 +2,7 @@
 //! Gaussian per point, sized by the distance to its nearest neighbours, colored by the point,
 //! nearly transparent (opacity 0.1) so that training decides what stays.
 
-use kiddo::{KdTree, SquaredEuclidean};
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use pwgs_decoder::gaussians::{Gaussians, opacity_to_logit, rgb_to_sh_dc, sh_coeff_count};
 use pwgs_decoder::ply::PointCloud;
 
@@ -16,18 +16,17 @@ const NEIGHBOURS: usize = 3;
 const MIN_SCALE: f32 = 1e-7;
 
 /// One Gaussian per point; scale = sqrt(mean squared distance to the 3 nearest other points).
-pub fn gaussians_from_points(cloud: &PointCloud, sh_degree: u32) -> Gaussians {
-    let mut tree: KdTree<f32, 3> = KdTree::with_capacity(cloud.positions.len());
-    for (i, p) in cloud.positions.iter().enumerate() {
-        tree.add(p, i as u64);
-    }
+pub fn gaussians_from_points(cloud: &PointCloud, sh_degree: u32) -> anyhow::Result<Gaussians> {
+    let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&cloud.positions)
+        .map_err(|e| anyhow::anyhow!("cannot index {} points: {e:?}", cloud.positions.len()))?;
     let mut g = Gaussians::with_degree(sh_degree);
     let mut sh = vec![0.0f32; sh_coeff_count(sh_degree) * 3];
     let logit = opacity_to_logit(INITIAL_OPACITY);
     for (p, color) in cloud.positions.iter().zip(&cloud.colors) {
         // The nearest hit is the point itself (distance 0) unless it has duplicates, which then
         // count as neighbours at distance 0, as in 3DGS.
-        let hits = tree.nearest_n::<SquaredEuclidean>(p, std::num::NonZero::new(NEIGHBOURS + 1).expect("non-zero"));
+        let count = std::num::NonZero::new(NEIGHBOURS + 1).expect("non-zero");
+        let hits = tree.query(p).nearest_n::<SquaredEuclidean<f32>>(count).execute();
         let others: Vec<f32> = hits.iter().skip(1).map(|n| n.distance).collect();
         let mean_sq = if others.is_empty() { 1.0 } else { others.iter().sum::<f32>() / others.len() as f32 };
         let scale = mean_sq.sqrt().max(MIN_SCALE);
@@ -36,7 +35,7 @@ pub fn gaussians_from_points(cloud: &PointCloud, sh_degree: u32) -> Gaussians {
         }
         g.push(*p, [scale.ln(); 3], [1.0, 0.0, 0.0, 0.0], logit, &sh);
     }
-    g
+    Ok(g)
 }
 
 #[cfg(test)]
@@ -49,7 +48,7 @@ mod tests {
             positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [10.0, 0.0, 0.0]],
             colors: vec![[0.2, 0.4, 0.6]; 5],
         };
-        let g = gaussians_from_points(&cloud, 1);
+        let g = gaussians_from_points(&cloud, 1).unwrap();
         assert_eq!(g.len(), 5);
         assert!((g.log_scales[0][0] - 0.0).abs() < 1e-6, "three unit neighbours give scale 1");
         assert!(g.log_scales[4][0] > 2.0, "an isolated point gets a large scale");

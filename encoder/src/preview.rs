@@ -26,7 +26,7 @@ pub struct ViewScore {
 pub fn initial_gaussians(data: &Dataset) -> Result<Gaussians> {
     let points = data.points.as_ref().context("the scene has no point cloud to initialize from")?;
     anyhow::ensure!(!points.positions.is_empty(), "the scene's point cloud is empty");
-    Ok(gaussians_from_points(points, 0))
+    gaussians_from_points(points, 0)
 }
 
 /// Renders every test view, optionally saving `<out>/<name>.png`, and scores it with PSNR.
