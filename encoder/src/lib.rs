@@ -6,3 +6,4 @@ pub mod backward;
 pub mod init;
 pub mod metrics;
 pub mod preview;
+pub mod splat_op;

@@ -1,0 +1,197 @@
+//! The rasterizer as a Burn operation with its own backward pass, so training code can write
+//! `render(&splats, camera)` on tensors and get gradients for every Gaussian parameter.
+//!
+//! Forward and backward are the CPU reference implementations (the decoder's forward, this
+//! crate's [`crate::backward`]); the op moves tensor data to the host and back. It is
+//! registered for Burn's `flex` CPU backend and for autodiff over it; GPU backends will get
+//! kernels of their own, checked against this one.
+
+use std::sync::Arc;
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::grads::Gradients as AutodiffGradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::Autodiff;
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Backend, Dispatch, ExtensionType, Flex, TensorMetadata, backend_extension};
+use burn::tensor::{Tensor, TensorData};
+use pwgs_decoder::camera::Camera;
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::raster::{RenderOptions, Rendered, rasterize};
+
+use crate::backward::{Gradients, backward};
+
+/// The trainable parameters of a set of Gaussians, as backend tensors.
+#[derive(ExtensionType)]
+pub struct SplatTensors<B: Backend> {
+    /// [N, 3]
+    pub means: FloatTensor<B>,
+    /// [N, 3]
+    pub log_scales: FloatTensor<B>,
+    /// [N, 4], (w, x, y, z), not necessarily normalized.
+    pub rotations: FloatTensor<B>,
+    /// [N]
+    pub opacity_logits: FloatTensor<B>,
+    /// [N, (degree + 1)^2, 3]
+    pub sh: FloatTensor<B>,
+    /// [N] zeros. Its gradient is |dL/d(projected center)| per Gaussian, the densification
+    /// signal of 3DGS, which is not the gradient of any parameter.
+    pub screen_probe: FloatTensor<B>,
+}
+
+/// What to render: camera and rasterizer settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SplatView {
+    pub camera: Camera,
+    pub options: RenderOptions,
+}
+
+#[backend_extension(Flex, Autodiff)]
+pub trait SplatBackend: Backend {
+    /// Renders [H, W, 3] colors.
+    fn render_splats(#[extension_type] splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self>;
+}
+
+/// Resolves a future that the CPU backend has already completed.
+fn ready<T>(future: impl Future<Output = T>) -> T {
+    let mut future = std::pin::pin!(future);
+    let mut context = std::task::Context::from_waker(std::task::Waker::noop());
+    match future.as_mut().poll(&mut context) {
+        std::task::Poll::Ready(value) => value,
+        std::task::Poll::Pending => panic!("the splat op runs on synchronous CPU backends only"),
+    }
+}
+
+fn host_values<B: Backend>(tensor: FloatTensor<B>) -> Vec<f32> {
+    let data = ready(B::float_into_data(tensor)).expect("reading a CPU tensor cannot fail");
+    data.convert::<f32>().try_into_vec::<f32>().expect("converted to f32")
+}
+
+fn arrays<const N: usize>(values: &[f32]) -> Vec<[f32; N]> {
+    values.chunks_exact(N).map(|c| c.try_into().expect("chunk of N")).collect()
+}
+
+/// Copies the tensors into a Gaussian set, checking their shapes against each other.
+fn gaussians_from<B: Backend>(splats: &SplatTensors<B>) -> Gaussians {
+    let n = splats.means.shape().as_slice()[0];
+    let sh_shape = splats.sh.shape().to_vec();
+    assert!(sh_shape.len() == 3 && sh_shape[0] == n && sh_shape[2] == 3, "sh must be [N, K, 3], got {sh_shape:?}");
+    let degree = (0..=pwgs_decoder::gaussians::MAX_SH_DEGREE)
+        .find(|&d| pwgs_decoder::gaussians::sh_coeff_count(d) == sh_shape[1])
+        .unwrap_or_else(|| panic!("{} SH coefficients is not a whole degree", sh_shape[1]));
+    let g = Gaussians {
+        means: arrays(&host_values::<B>(splats.means.clone())),
+        log_scales: arrays(&host_values::<B>(splats.log_scales.clone())),
+        rotations: arrays(&host_values::<B>(splats.rotations.clone())),
+        opacity_logits: host_values::<B>(splats.opacity_logits.clone()),
+        sh_degree: degree,
+        sh: host_values::<B>(splats.sh.clone()),
+    };
+    assert!(g.is_consistent() && g.len() == n, "splat tensors disagree on the Gaussian count");
+    g
+}
+
+fn image_tensor<B: Backend>(rendered: &Rendered, device: &B::Device) -> FloatTensor<B> {
+    let (w, h) = (rendered.color.width as usize, rendered.color.height as usize);
+    B::float_from_data(TensorData::new(rendered.color.data.clone(), [h, w, 3]), device)
+}
+
+impl SplatBackend for Flex {
+    fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
+        let device = splats.means.device();
+        let g = gaussians_from(&splats);
+        image_tensor::<Self>(&rasterize(&g, &view.camera, &view.options), &device)
+    }
+}
+
+/// What the forward pass keeps for the backward pass.
+#[derive(Debug)]
+struct Saved {
+    gaussians: Gaussians,
+    view: SplatView,
+    rendered: Rendered,
+}
+
+#[derive(Debug)]
+struct RenderBackward;
+
+impl<B: Backend> Backward<B, 6> for RenderBackward {
+    type State = Arc<Saved>;
+
+    fn backward(self, ops: Ops<Self::State, 6>, grads: &mut AutodiffGradients, _checkpointer: &mut Checkpointer) {
+        let saved = ops.state;
+        let v_image = grads.consume::<B>(&ops.node);
+        let device = v_image.device();
+        let v_color = host_values::<B>(v_image);
+        let Gradients { means, log_scales, rotations, opacity_logits, sh, screen_mean } =
+            backward(&saved.gaussians, &saved.view.camera, &saved.view.options, &saved.rendered, &v_color);
+        let n = saved.gaussians.len();
+        let k = saved.gaussians.coeffs_per_channel();
+        let flat = |v: Vec<[f32; 3]>| v.into_iter().flatten().collect::<Vec<f32>>();
+        let values: [(Vec<f32>, Vec<usize>); 6] = [
+            (flat(means), vec![n, 3]),
+            (flat(log_scales), vec![n, 3]),
+            (rotations.into_iter().flatten().collect(), vec![n, 4]),
+            (opacity_logits, vec![n]),
+            (sh, vec![n, k, 3]),
+            (screen_mean, vec![n]),
+        ];
+        for (parent, (data, shape)) in ops.parents.into_iter().zip(values) {
+            if let Some(node) = parent {
+                grads.register::<B>(node.id, B::float_from_data(TensorData::new(data, shape), &device));
+            }
+        }
+    }
+}
+
+impl<C: CheckpointStrategy> SplatBackend for Autodiff<Flex, C> {
+    fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
+        let nodes = [
+            splats.means.node(),
+            splats.log_scales.node(),
+            splats.rotations.node(),
+            splats.opacity_logits.node(),
+            splats.sh.node(),
+            splats.screen_probe.node(),
+        ];
+        let inner = SplatTensors::<Flex> {
+            means: splats.means.primitive().clone(),
+            log_scales: splats.log_scales.primitive().clone(),
+            rotations: splats.rotations.primitive().clone(),
+            opacity_logits: splats.opacity_logits.primitive().clone(),
+            sh: splats.sh.primitive().clone(),
+            screen_probe: splats.screen_probe.primitive().clone(),
+        };
+        let device = inner.means.device();
+        let gaussians = gaussians_from(&inner);
+        let rendered = rasterize(&gaussians, &view.camera, &view.options);
+        let image = image_tensor::<Flex>(&rendered, &device);
+        match RenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => prep.finish(Arc::new(Saved { gaussians, view, rendered }), image),
+            OpsKind::UnTracked(prep) => prep.finish(image),
+        }
+    }
+}
+
+/// Renders Gaussians held as tensors ([N,3], [N,3], [N,4], [N], [N,K,3], [N]) to an
+/// [H, W, 3] image tensor, differentiably when the tensors track gradients.
+pub fn render(
+    means: Tensor<2>,
+    log_scales: Tensor<2>,
+    rotations: Tensor<2>,
+    opacity_logits: Tensor<1>,
+    sh: Tensor<3>,
+    screen_probe: Tensor<1>,
+    view: SplatView,
+) -> Tensor<3> {
+    let splats = SplatTensors {
+        means: means.into_dispatch(),
+        log_scales: log_scales.into_dispatch(),
+        rotations: rotations.into_dispatch(),
+        opacity_logits: opacity_logits.into_dispatch(),
+        sh: sh.into_dispatch(),
+        screen_probe: screen_probe.into_dispatch(),
+    };
+    Tensor::from_dispatch(<Dispatch as SplatBackend>::render_splats(splats, view))
+}
