@@ -79,16 +79,7 @@ impl Camera {
         if !(deviation <= ROTATION_TOLERANCE) {
             return Err(CameraError::NotARotation { deviation });
         }
-        Ok(Self {
-            width,
-            height,
-            fx,
-            fy,
-            cx,
-            cy,
-            rotation: orthonormalize(rotation),
-            translation,
-        })
+        Ok(Self { width, height, fx, fy, cx, cy, rotation: orthonormalize(rotation), translation })
     }
 
     /// Builds a camera from a camera-to-world matrix whose axes follow OpenCV.
@@ -139,12 +130,7 @@ impl Camera {
     /// Camera-to-world matrix, OpenCV axes.
     pub fn camera_to_world(&self) -> Mat4 {
         let r = self.rotation.transpose();
-        Mat4::from_cols(
-            r.x_axis.extend(0.0),
-            r.y_axis.extend(0.0),
-            r.z_axis.extend(0.0),
-            self.center().extend(1.0),
-        )
+        Mat4::from_cols(r.x_axis.extend(0.0), r.y_axis.extend(0.0), r.z_axis.extend(0.0), self.center().extend(1.0))
     }
 
     /// A point in camera coordinates.
@@ -247,8 +233,7 @@ mod tests {
         let p = Vec3::new(0.3, -1.0, 2.0);
         let back = cam.camera_to_world().transform_point3(cam.world_to_camera(p));
         assert!((back - p).length() < 1e-5);
-        let again = Camera::from_camera_to_world(64, 48, 50.0, 55.0, 31.0, 25.0, cam.camera_to_world())
-            .unwrap();
+        let again = Camera::from_camera_to_world(64, 48, 50.0, 55.0, 31.0, 25.0, cam.camera_to_world()).unwrap();
         assert!((again.translation - cam.translation).length() < 1e-5);
     }
 
@@ -262,8 +247,7 @@ mod tests {
 
     #[test]
     fn opengl_camera_looks_down_minus_z() {
-        let cam =
-            Camera::from_opengl_camera_to_world(10, 10, 5.0, 5.0, 5.0, 5.0, Mat4::IDENTITY).unwrap();
+        let cam = Camera::from_opengl_camera_to_world(10, 10, 5.0, 5.0, 5.0, 5.0, Mat4::IDENTITY).unwrap();
         // In OpenGL the identity camera looks down -z with y up.
         let (u, v) = cam.project(Vec3::new(0.0, 1.0, -2.0)).unwrap();
         assert!((u - 5.0).abs() < 1e-6 && v < 5.0);
@@ -273,14 +257,8 @@ mod tests {
     #[test]
     fn rejects_bad_cameras() {
         let r = Mat3::IDENTITY;
-        assert!(matches!(
-            Camera::new(0, 4, 1.0, 1.0, 0.0, 0.0, r, Vec3::ZERO),
-            Err(CameraError::EmptyImage { .. })
-        ));
-        assert!(matches!(
-            Camera::new(4, 4, f32::NAN, 1.0, 0.0, 0.0, r, Vec3::ZERO),
-            Err(CameraError::BadFocal { .. })
-        ));
+        assert!(matches!(Camera::new(0, 4, 1.0, 1.0, 0.0, 0.0, r, Vec3::ZERO), Err(CameraError::EmptyImage { .. })));
+        assert!(matches!(Camera::new(4, 4, f32::NAN, 1.0, 0.0, 0.0, r, Vec3::ZERO), Err(CameraError::BadFocal { .. })));
         assert!(matches!(
             Camera::new(4, 4, 1.0, 1.0, 0.0, 0.0, r * 2.0, Vec3::ZERO),
             Err(CameraError::NotARotation { .. })

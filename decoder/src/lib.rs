@@ -5,6 +5,6 @@ pub mod atomic_file;
 pub mod camera;
 pub mod gaussians;
 pub mod ply;
-pub mod rgb_image;
-pub mod raster;
 pub mod random_scene;
+pub mod raster;
+pub mod rgb_image;

@@ -171,9 +171,8 @@ fn parse_header(bytes: &[u8]) -> Result<Header, PlyProblem> {
                 })
             }
             ["element", name, count] => {
-                let count = count
-                    .parse()
-                    .map_err(|_| header_err(line_no + 1, &format!("bad element count `{count}`")))?;
+                let count =
+                    count.parse().map_err(|_| header_err(line_no + 1, &format!("bad element count `{count}`")))?;
                 elements.push(Element { name: name.to_string(), count, properties: Vec::new() });
             }
             ["property", "list", count_ty, item_ty, _name] => {
@@ -181,16 +180,14 @@ fn parse_header(bytes: &[u8]) -> Result<Header, PlyProblem> {
                     .ok_or_else(|| header_err(line_no + 1, &format!("unknown type `{count_ty}`")))?;
                 let item = Scalar::parse(item_ty)
                     .ok_or_else(|| header_err(line_no + 1, &format!("unknown type `{item_ty}`")))?;
-                let element = elements
-                    .last_mut()
-                    .ok_or_else(|| header_err(line_no + 1, "property before any element"))?;
+                let element =
+                    elements.last_mut().ok_or_else(|| header_err(line_no + 1, "property before any element"))?;
                 element.properties.push(Property::List { count, item });
             }
             ["property", ty, name] => {
                 let ty = Scalar::parse(ty).ok_or_else(|| header_err(line_no + 1, &format!("unknown type `{ty}`")))?;
-                let element = elements
-                    .last_mut()
-                    .ok_or_else(|| header_err(line_no + 1, "property before any element"))?;
+                let element =
+                    elements.last_mut().ok_or_else(|| header_err(line_no + 1, "property before any element"))?;
                 element.properties.push(Property::Scalar { name: name.to_string(), ty });
             }
             _ => return Err(header_err(line_no + 1, &format!("unexpected line `{line}`"))),
@@ -241,7 +238,11 @@ pub fn read_vertex_table(bytes: &[u8]) -> Result<VertexTable, PlyProblem> {
     let mut cursor = match header.encoding {
         Encoding::Ascii => Cursor::Ascii(
             std::str::from_utf8(data)
-                .map_err(|_| PlyProblem::BadValue { element: "data".into(), row: 0, message: "ASCII data is not UTF-8".into() })?
+                .map_err(|_| PlyProblem::BadValue {
+                    element: "data".into(),
+                    row: 0,
+                    message: "ASCII data is not UTF-8".into(),
+                })?
                 .split_ascii_whitespace(),
         ),
         Encoding::BinaryLittleEndian => Cursor::Binary { data, big_endian: false },
@@ -355,7 +356,8 @@ pub fn gaussians_from_bytes(bytes: &[u8]) -> Result<PlyGaussians, PlyProblem> {
     let dc = [get("f_dc_0")?, get("f_dc_1")?, get("f_dc_2")?];
     let rest: Vec<&[f64]> = (0..rest_count).map(|i| get(&format!("f_rest_{i}"))).collect::<Result<_, _>>()?;
 
-    let mut out = PlyGaussians { gaussians: Gaussians::with_degree(degree), dropped_non_finite: 0, clamped_opacities: 0 };
+    let mut out =
+        PlyGaussians { gaussians: Gaussians::with_degree(degree), dropped_non_finite: 0, clamped_opacities: 0 };
     let mut sh = vec![0.0f32; coeffs * 3];
     for i in 0..table.count {
         let mean = pos.map(|c| c[i] as f32);
@@ -386,10 +388,8 @@ pub fn gaussians_from_bytes(bytes: &[u8]) -> Result<PlyGaussians, PlyProblem> {
 /// Property names of the INRIA layout for a given SH degree, in the order INRIA writes them.
 fn inria_property_names(degree: u32) -> Vec<String> {
     let rest = (sh_coeff_count(degree) - 1) * 3;
-    let mut names: Vec<String> = ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
+    let mut names: Vec<String> =
+        ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"].iter().map(|s| s.to_string()).collect();
     names.extend((0..rest).map(|i| format!("f_rest_{i}")));
     names.extend(
         ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"].iter().map(|s| s.to_string()),
@@ -553,7 +553,10 @@ mod tests {
 
     #[test]
     fn point_cloud_round_trip() {
-        let cloud = PointCloud { positions: vec![[1.0, 2.0, 3.0], [-1.0, 0.5, 9.0]], colors: vec![[1.0, 0.0, 0.2], [0.0, 1.0, 0.6]] };
+        let cloud = PointCloud {
+            positions: vec![[1.0, 2.0, 3.0], [-1.0, 0.5, 9.0]],
+            colors: vec![[1.0, 0.0, 0.2], [0.0, 1.0, 0.6]],
+        };
         let back = point_cloud_from_bytes(&point_cloud_to_bytes(&cloud)).unwrap();
         assert_eq!(back.positions, cloud.positions);
         for (a, b) in back.colors.iter().flatten().zip(cloud.colors.iter().flatten()) {

@@ -9,7 +9,8 @@ use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, rasterize};
 use safetensors::SafeTensors;
 
-const REFERENCE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference-renders/gsplat_basic_case.safetensors");
+const REFERENCE: &str =
+    concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference-renders/gsplat_basic_case.safetensors");
 
 fn floats(tensors: &SafeTensors, name: &str) -> (Vec<usize>, Vec<f32>) {
     let t = tensors.tensor(name).unwrap_or_else(|e| panic!("tensor {name}: {e}"));
@@ -48,7 +49,8 @@ fn matches_gsplat_basic_case() {
     let mut worst = 0.0f32;
     let mut covered = 0;
     for p in 0..123 * 82 {
-        let ours = [out.color.data[p * 3], out.color.data[p * 3 + 1], out.color.data[p * 3 + 2], 1.0 - out.transmittance[p]];
+        let ours =
+            [out.color.data[p * 3], out.color.data[p * 3 + 1], out.color.data[p * 3 + 2], 1.0 - out.transmittance[p]];
         let reference = &expected[p * 4..p * 4 + 4];
         for c in 0..4 {
             let excess = (ours[c] - reference[c]).abs() - (1e-5 + 1e-2 * reference[c].abs());

@@ -1,14 +1,16 @@
 //! Forward rasterizer: agreement with the naive reference, with gsplat, and the hard cases.
 
-mod common_scenes;
+mod common;
 
-use common_scenes::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
+use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, rgb_to_sh_dc};
 use pwgs_decoder::raster::{RenderOptions, rasterize, render};
 
 #[test]
 fn matches_naive_reference_on_random_scenes() {
-    for (seed, degree, n, (w, h)) in [(1u64, 3, 200, (64, 48)), (2, 0, 500, (37, 29)), (3, 1, 50, (80, 80)), (4, 2, 300, (33, 65))] {
+    for (seed, degree, n, (w, h)) in
+        [(1u64, 3, 200, (64, 48)), (2, 0, 500, (37, 29)), (3, 1, 50, (80, 80)), (4, 2, 300, (33, 65))]
+    {
         let mut rng = Rng(seed);
         let g = random_gaussians(&mut rng, n, degree);
         let cam = camera(w, h, 0.8 * w as f32, 0.9 * w as f32, w as f32 * 0.47, h as f32 * 0.55);
@@ -205,7 +207,10 @@ fn principal_point_and_anisotropic_focal() {
             my += a * (y as f64 + 0.5);
         }
     }
-    assert!((mx / sum - cx as f64).abs() < 0.15 && (my / sum - cy as f64).abs() < 0.15, "centroid off the principal point");
+    assert!(
+        (mx / sum - cx as f64).abs() < 0.15 && (my / sum - cy as f64).abs() < 0.15,
+        "centroid off the principal point"
+    );
     // fx != fy stretches the footprint: the vertical extent is larger.
     let covered = |horizontal: bool| {
         (0..if horizontal { 40 } else { 24 })

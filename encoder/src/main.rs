@@ -80,7 +80,8 @@ fn parse_color(s: &str) -> Result<[f32; 3], String> {
         "black" => return Ok([0.0; 3]),
         _ => {}
     }
-    let parts: Vec<f32> = s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+    let parts: Vec<f32> =
+        s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
     match parts.as_slice() {
         [r, g, b] if parts.iter().all(|v| (0.0..=1.0).contains(v)) => Ok([*r, *g, *b]),
         _ => Err(format!("`{s}` is not `white`, `black` or three values in [0, 1] like 0.5,0.5,0.5")),

@@ -41,7 +41,8 @@ pub fn evaluate(g: &Gaussians, data: &Dataset, options: &RenderOptions, out: Opt
             let image = render(g, &view.camera, options);
             let render_seconds = start.elapsed().as_secs_f64();
             if let Some(dir) = out {
-                let stem = Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
+                let stem =
+                    Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
                 image.save_png(&dir.join(format!("{stem}.png")))?;
             }
             Ok(ViewScore { name: view.name.clone(), psnr: psnr(&image, &view.image), render_seconds })

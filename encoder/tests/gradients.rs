@@ -119,7 +119,11 @@ fn check(case: &Case) {
         let noise = 1e-7 * (pixels as f64).sqrt() / h;
         for (i, slot, a, n) in pairs {
             let allowed = 1e-2 * n.abs().max(a.abs()) + noise;
-            assert!((a - n).abs() < allowed, "{} {kind:?} Gaussian {i} slot {slot}: analytic {a} numeric {n}", case.name);
+            assert!(
+                (a - n).abs() < allowed,
+                "{} {kind:?} Gaussian {i} slot {slot}: analytic {a} numeric {n}",
+                case.name
+            );
         }
     }
 }

@@ -39,7 +39,15 @@ fn params(g: &Gaussians, device: &Device, track: bool) -> Params {
 }
 
 fn draw(p: &Params, view: SplatView) -> Tensor<3> {
-    render(p.means.clone(), p.log_scales.clone(), p.rotations.clone(), p.opacity.clone(), p.sh.clone(), p.probe.clone(), view)
+    render(
+        p.means.clone(),
+        p.log_scales.clone(),
+        p.rotations.clone(),
+        p.opacity.clone(),
+        p.sh.clone(),
+        p.probe.clone(),
+        view,
+    )
 }
 
 fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {

@@ -44,7 +44,15 @@ pub struct Band<'a> {
 }
 
 /// Blends tile row `ty` into `band`.
-pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, width: u32, height: u32, band: Band) {
+pub fn blend_band(
+    ty: u32,
+    bins: &TileBins,
+    splats: &[Splat],
+    options: &RenderOptions,
+    width: u32,
+    height: u32,
+    band: Band,
+) {
     for tx in 0..bins.tiles_x {
         let t = (ty * bins.tiles_x + tx) as usize;
         let [x0, x1, y0, y1] = bins.tile_rect(t, width, height);

@@ -115,7 +115,12 @@ pub fn rotation_matrix(q: [f64; 4]) -> DMat3 {
 /// Projects Gaussian `i`, or returns `None` when it is culled: a non-finite parameter, a
 /// degenerate quaternion or covariance, behind the near plane, outside the guard band, too
 /// transparent, or not overlapping the image.
-pub fn project_detail(g: &Gaussians, i: usize, camera: &Camera, settings: &ProjectionSettings) -> Option<ProjectionDetail> {
+pub fn project_detail(
+    g: &Gaussians,
+    i: usize,
+    camera: &Camera,
+    settings: &ProjectionSettings,
+) -> Option<ProjectionDetail> {
     let mean = finite(g.means[i])?;
     let log_scale = finite(g.log_scales[i])?;
     let q = finite(g.rotations[i])?;
@@ -158,7 +163,8 @@ pub fn project_detail(g: &Gaussians, i: usize, camera: &Camera, settings: &Proje
     let m = rotation * DMat3::from_diagonal(scale);
     let cov_cam = w2c * (m * m.transpose()) * w2c.transpose();
 
-    let (slack_x, slack_y) = ((JACOBIAN_FOV_LIMIT - 1.0) * (left + right) / 2.0, (JACOBIAN_FOV_LIMIT - 1.0) * (top + bottom) / 2.0);
+    let (slack_x, slack_y) =
+        ((JACOBIAN_FOV_LIMIT - 1.0) * (left + right) / 2.0, (JACOBIAN_FOV_LIMIT - 1.0) * (top + bottom) / 2.0);
     let clamped_tan_x = tan_x.clamp(-left - slack_x, right + slack_x);
     let clamped_tan_y = tan_y.clamp(-top - slack_y, bottom + slack_y);
     let clamped = [clamped_tan_x != tan_x, clamped_tan_y != tan_y];
@@ -166,11 +172,8 @@ pub fn project_detail(g: &Gaussians, i: usize, camera: &Camera, settings: &Proje
     let jacobian = [DVec3::new(fx / z, 0.0, -fx * clamped_tan_x / z), DVec3::new(0.0, fy / z, -fy * clamped_tan_y / z)];
     let cov_j0 = cov_cam * jacobian[0];
     let cov_j1 = cov_cam * jacobian[1];
-    let cov2d = [
-        jacobian[0].dot(cov_j0) + settings.blur,
-        jacobian[0].dot(cov_j1),
-        jacobian[1].dot(cov_j1) + settings.blur,
-    ];
+    let cov2d =
+        [jacobian[0].dot(cov_j0) + settings.blur, jacobian[0].dot(cov_j1), jacobian[1].dot(cov_j1) + settings.blur];
     let det = cov2d[0] * cov2d[2] - cov2d[1] * cov2d[1];
     if !(det > 0.0 && det.is_finite() && cov2d.iter().all(|v| v.is_finite())) {
         return None;

@@ -22,7 +22,7 @@ pub struct ImageSource {
 /// `base` itself for K = 1) to be downscaled by N / K.
 pub fn choose_source(scene_dir: &Path, base: &str, downscale: u32) -> Result<ImageSource, DatasetError> {
     let folder_for = |k: u32| if k == 1 { scene_dir.join(base) } else { scene_dir.join(format!("{base}_{k}")) };
-    let candidates = (1..=downscale).rev().filter(|k| downscale % k == 0);
+    let candidates = (1..=downscale).rev().filter(|k| downscale.is_multiple_of(*k));
     for k in candidates {
         let folder = folder_for(k);
         if folder.is_dir() {

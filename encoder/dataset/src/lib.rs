@@ -40,7 +40,9 @@ pub enum DatasetError {
     Ply(#[from] pwgs_decoder::ply::PlyError),
     #[error("{path}: camera rejected: {source}")]
     Camera { path: PathBuf, source: pwgs_decoder::camera::CameraError },
-    #[error("{path}: no supported scene found (looked for sparse/0 or sparse COLMAP models, transforms*.json, poses_bounds.npy)")]
+    #[error(
+        "{path}: no supported scene found (looked for sparse/0 or sparse COLMAP models, transforms*.json, poses_bounds.npy)"
+    )]
     UnknownFormat { path: PathBuf },
 }
 

@@ -124,11 +124,7 @@ fn load_views(specs: Vec<ViewSpec>, factor: u32, background: [f32; 3]) -> Result
         .map(|spec| {
             let image = images::load(&spec.image_path, background, factor)?;
             let camera = fit_camera(&spec, &image)?;
-            let image = undistort(
-                &image,
-                [camera.fx, camera.fy, camera.cx, camera.cy].map(f64::from),
-                spec.distortion,
-            );
+            let image = undistort(&image, [camera.fx, camera.fy, camera.cx, camera.cy].map(f64::from), spec.distortion);
             Ok(View { name: spec.name, camera, image })
         })
         .collect()
@@ -210,5 +206,9 @@ fn colmap_scene(model_dir: &Path, image_folder: &Path) -> Result<ParsedScene, Da
 fn find_by_name(files: &[PathBuf], name: &str) -> Option<PathBuf> {
     let name = Path::new(name);
     let stem = name.file_stem();
-    files.iter().find(|f| f.file_name() == name.file_name()).or_else(|| files.iter().find(|f| f.file_stem() == stem)).cloned()
+    files
+        .iter()
+        .find(|f| f.file_name() == name.file_name())
+        .or_else(|| files.iter().find(|f| f.file_stem() == stem))
+        .cloned()
 }

@@ -85,7 +85,12 @@ pub fn parse(dir: &Path) -> Result<ParsedScene, DatasetError> {
         let (train, points) = parse_file(dir, &train_file)?;
         let test_file = dir.join("transforms_test.json");
         let test = if test_file.is_file() { parse_file(dir, &test_file)?.0 } else { Vec::new() };
-        return Ok(ParsedScene { format: "transforms (train/test files)", views: train, explicit_test: Some(test), points });
+        return Ok(ParsedScene {
+            format: "transforms (train/test files)",
+            views: train,
+            explicit_test: Some(test),
+            points,
+        });
     }
     let (views, points) = parse_file(dir, &dir.join("transforms.json"))?;
     Ok(ParsedScene { format: "transforms", views, explicit_test: None, points })
@@ -110,10 +115,18 @@ fn parse_file(dir: &Path, path: &Path) -> Result<FileContent, DatasetError> {
     Ok((views, points))
 }
 
-fn frame_view(dir: &Path, path: &Path, index: usize, frame: Frame, file: &CameraFields) -> Result<ViewSpec, DatasetError> {
-    let context = |message: String| DatasetError::malformed(path, format!("frame {index} (`{}`): {message}", frame.file_path));
+fn frame_view(
+    dir: &Path,
+    path: &Path,
+    index: usize,
+    frame: Frame,
+    file: &CameraFields,
+) -> Result<ViewSpec, DatasetError> {
+    let context =
+        |message: String| DatasetError::malformed(path, format!("frame {index} (`{}`): {message}", frame.file_path));
     let image_path = resolve_image(dir, &frame.file_path).ok_or_else(|| context("image file not found".into()))?;
-    let (img_w, img_h) = image::image_dimensions(&image_path).map_err(|e| context(format!("cannot read image size: {e}")))?;
+    let (img_w, img_h) =
+        image::image_dimensions(&image_path).map_err(|e| context(format!("cannot read image size: {e}")))?;
     let fields = frame.camera.or(file);
     let distortion = distortion(&fields).map_err(|m| DatasetError::unsupported(path, format!("frame {index}: {m}")))?;
     // Intrinsics are given for (w, h) when stated, else for the image as stored.
@@ -171,5 +184,8 @@ fn resolve_image(dir: &Path, file_path: &str) -> Option<PathBuf> {
     if base.is_file() {
         return Some(base);
     }
-    ["png", "jpg", "jpeg", "PNG", "JPG"].iter().map(|ext| PathBuf::from(format!("{}.{ext}", base.display()))).find(|p| p.is_file())
+    ["png", "jpg", "jpeg", "PNG", "JPG"]
+        .iter()
+        .map(|ext| PathBuf::from(format!("{}.{ext}", base.display())))
+        .find(|p| p.is_file())
 }

@@ -13,9 +13,17 @@ use pwgs_decoder::rgb_image::RgbImage;
 pub enum Distortion {
     None,
     /// Radial polynomial: r' = r (1 + k1 r^2 + k2 r^4) (COLMAP SIMPLE_RADIAL has k2 = 0).
-    Radial { k1: f64, k2: f64 },
+    Radial {
+        k1: f64,
+        k2: f64,
+    },
     /// OpenCV's radial + tangential model (COLMAP OPENCV, nerfstudio OPENCV).
-    Opencv { k1: f64, k2: f64, p1: f64, p2: f64 },
+    Opencv {
+        k1: f64,
+        k2: f64,
+        p1: f64,
+        p2: f64,
+    },
 }
 
 impl Distortion {

@@ -3,7 +3,9 @@
 
 use std::path::Path;
 
-use pwgs_dataset::colmap::{CameraModel, ColmapCamera, ColmapImage, ColmapModel, ColmapPoint, write_binary, write_text};
+use pwgs_dataset::colmap::{
+    CameraModel, ColmapCamera, ColmapImage, ColmapModel, ColmapPoint, write_binary, write_text,
+};
 use pwgs_dataset::synthetic::{SyntheticOptions, cameras, generate};
 use pwgs_dataset::{Dataset, DatasetError, LoadOptions, load_scene};
 use pwgs_decoder::camera::matrix_to_quaternion;
@@ -169,7 +171,10 @@ fn broken_inputs_are_clear_errors() {
     assert_load_error(&dir, "view_001.png");
 
     let dir = fresh("bad_points");
-    std::fs::write(dir.join("points3d.ply"), b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1 2\n")
-        .unwrap();
+    std::fs::write(
+        dir.join("points3d.ply"),
+        b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1 2\n",
+    )
+    .unwrap();
     assert_load_error(&dir, "points3d.ply");
 }

@@ -21,7 +21,10 @@ fn fern_from_colmap() {
     let data = load_scene(&dir, &LoadOptions { downscale: 8, ..Default::default() }).unwrap();
     assert_eq!(data.format, "COLMAP");
     assert_eq!((data.train.len(), data.test.len()), (17, 3));
-    assert_eq!(data.test.iter().map(|v| v.name.as_str()).collect::<Vec<_>>(), ["IMG_4026.JPG", "IMG_4034.JPG", "IMG_4042.JPG"]);
+    assert_eq!(
+        data.test.iter().map(|v| v.name.as_str()).collect::<Vec<_>>(),
+        ["IMG_4026.JPG", "IMG_4034.JPG", "IMG_4042.JPG"]
+    );
     for view in data.train.iter().chain(&data.test) {
         let cam = &view.camera;
         assert_eq!((cam.width, cam.height, view.image.width, view.image.height), (504, 378, 504, 378));

@@ -45,13 +45,25 @@ impl Gradients {
 /// Gradients of a loss with respect to the Gaussians, given dL/d(color) per pixel (`v_color`,
 /// interleaved RGB) and the forward pass's [`Rendered`] for the same Gaussians, camera and
 /// options.
-pub fn backward(g: &Gaussians, camera: &Camera, options: &RenderOptions, rendered: &Rendered, v_color: &[f32]) -> Gradients {
+pub fn backward(
+    g: &Gaussians,
+    camera: &Camera,
+    options: &RenderOptions,
+    rendered: &Rendered,
+    v_color: &[f32],
+) -> Gradients {
     let splat_grads = blend::blend_backward(rendered, options, v_color);
     let per_splat: Vec<_> = rendered
         .splats
         .par_iter()
         .zip(&splat_grads)
-        .map(|(s, v)| (s.index as usize, projection::projection_backward(g, s.index as usize, camera, &options.projection, v), v.mean))
+        .map(|(s, v)| {
+            (
+                s.index as usize,
+                projection::projection_backward(g, s.index as usize, camera, &options.projection, v),
+                v.mean,
+            )
+        })
         .collect();
     let mut out = Gradients::zeros(g);
     let k = g.coeffs_per_channel() * 3;

@@ -59,10 +59,10 @@ pub fn projection_backward(
     let conic = [c / det, -b / det, a / det];
     let gm = [v.conic[0], 0.5 * v.conic[1], v.conic[2]];
     // C G
-    let cg = [[conic[0] * gm[0] + conic[1] * gm[1], conic[0] * gm[1] + conic[1] * gm[2]], [
-        conic[1] * gm[0] + conic[2] * gm[1],
-        conic[1] * gm[1] + conic[2] * gm[2],
-    ]];
+    let cg = [
+        [conic[0] * gm[0] + conic[1] * gm[1], conic[0] * gm[1] + conic[1] * gm[2]],
+        [conic[1] * gm[0] + conic[2] * gm[1], conic[1] * gm[1] + conic[2] * gm[2]],
+    ];
     // -(C G) C, symmetric: (xx, xy, yy).
     let v_cov2d = [
         -(cg[0][0] * conic[0] + cg[0][1] * conic[1]),
@@ -150,7 +150,8 @@ fn quaternion_backward(q: [f64; 4], v_r: &DMat3, raw: [f32; 4]) -> [f64; 4] {
             - 2.0 * x * r(2, 2)),
         2.0 * (-2.0 * y * r(0, 0) + x * r(0, 1) + w * r(0, 2) + x * r(1, 0) + z * r(1, 2) - w * r(2, 0) + z * r(2, 1)
             - 2.0 * y * r(2, 2)),
-        2.0 * (-2.0 * z * r(0, 0) - w * r(0, 1) + x * r(0, 2) + w * r(1, 0) - 2.0 * z * r(1, 1) + y * r(1, 2)
+        2.0 * (-2.0 * z * r(0, 0) - w * r(0, 1) + x * r(0, 2) + w * r(1, 0) - 2.0 * z * r(1, 1)
+            + y * r(1, 2)
             + x * r(2, 0)
             + y * r(2, 1)),
     ];

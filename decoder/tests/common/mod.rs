@@ -1,6 +1,6 @@
 //! Shared test scaffolding: a deterministic random number generator, random Gaussian scenes
 //! and cameras, and the naive reference renderer.
-#![allow(dead_code)] // each test binary uses a different part
+#![allow(dead_code, unused_imports)] // each test binary (and the benchmark) uses a different part
 
 use glam::{DMat3, DVec3};
 use pwgs_decoder::camera::Camera;
