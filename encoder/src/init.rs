@@ -3,8 +3,10 @@
 //! nearly transparent (opacity 0.1) so that training decides what stays.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use pwgs_dataset::Dataset;
 use pwgs_decoder::gaussians::{Gaussians, opacity_to_logit, rgb_to_sh_dc, sh_coeff_count};
 use pwgs_decoder::ply::PointCloud;
+use pwgs_decoder::random_scene::SplitMix64;
 
 /// Opacity of freshly initialized Gaussians.
 pub const INITIAL_OPACITY: f32 = 0.1;
@@ -14,6 +16,36 @@ const NEIGHBOURS: usize = 3;
 
 /// Smallest initial scale: coincident points would otherwise give log(0).
 const MIN_SCALE: f32 = 1e-7;
+
+/// Points sampled when a dataset has no point cloud.
+pub const RANDOM_POINTS: usize = 10_000;
+
+/// The initial Gaussians of a dataset: from its point cloud, or, when it has none, from
+/// [`RANDOM_POINTS`] points sampled in the training cameras' view frusta.
+pub fn initial_gaussians(data: &Dataset, seed: u64) -> anyhow::Result<Gaussians> {
+    match &data.points {
+        Some(points) if !points.positions.is_empty() => gaussians_from_points(points, 0),
+        _ => gaussians_from_points(&random_frustum_points(data, RANDOM_POINTS, seed)?, 0),
+    }
+}
+
+/// Points along random pixel rays of the training cameras, at depths spread around the scene
+/// center's distance, with mid-gray color.
+pub fn random_frustum_points(data: &Dataset, count: usize, seed: u64) -> anyhow::Result<PointCloud> {
+    anyhow::ensure!(!data.train.is_empty(), "no training views to sample points from");
+    let mut rng = SplitMix64(seed);
+    let mut cloud = PointCloud::default();
+    for k in 0..count {
+        let cam = &data.train[k % data.train.len()].camera;
+        let (u, v) = (rng.uniform(0.0, cam.width as f32), rng.uniform(0.0, cam.height as f32));
+        let distance = cam.center().distance(data.normalization.center).max(1e-3);
+        let depth = distance * rng.uniform(0.3, 1.5);
+        let p = cam.center() + cam.ray_direction(u, v) * depth;
+        cloud.positions.push(p.to_array());
+        cloud.colors.push([0.5; 3]);
+    }
+    Ok(cloud)
+}
 
 /// One Gaussian per point; scale = sqrt(mean squared distance to the 3 nearest other points).
 pub fn gaussians_from_points(cloud: &PointCloud, sh_degree: u32) -> anyhow::Result<Gaussians> {

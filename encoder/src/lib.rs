@@ -1,9 +1,10 @@
-//! The pwgs encoder library: initialization, the rasterizer's backward pass, training and
-//! metrics. Scene loading lives in the `pwgs-dataset` crate beside it, rendering and everything
-//! normative in `pwgs-decoder`.
+//! The pwgs encoder library: initialization, the rasterizer's backward pass and its Burn
+//! operation, training, evaluation and metrics. Scene loading lives in the `pwgs-dataset`
+//! crate beside it, rendering and everything normative in `pwgs-decoder`.
 
 pub mod backward;
+pub mod evaluate;
 pub mod init;
 pub mod metrics;
-pub mod preview;
 pub mod splat_op;
+pub mod train;

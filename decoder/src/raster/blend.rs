@@ -14,25 +14,36 @@ const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 /// Width of the smoothstep that replaces the hard alpha_min cutoff in [`Cutoff::Smooth`].
 pub const SMOOTH_CUTOFF_BAND: f32 = 1e-3;
 
+/// A splat evaluated at a pixel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlphaSample {
+    /// The alpha blended.
+    pub alpha: f32,
+    /// exp(-sigma), the Gaussian's falloff at the pixel.
+    pub falloff: f32,
+}
+
 /// Alpha of a splat at offset (dx, dy) from its center, or `None` when it does not contribute.
+/// The backward pass calls this too, so both passes take exactly the same decisions.
 #[inline]
-pub fn splat_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Option<f32> {
+pub fn splat_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Option<AlphaSample> {
     let [l11, l21, l22] = s.cholesky;
     let (p, q) = (l11 * dx + l21 * dy, l22 * dy);
-    let sigma = 0.5 * (p * p + q * q);
-    let raw = s.opacity * (-sigma).exp();
+    let falloff = (-0.5 * (p * p + q * q)).exp();
+    let raw = s.opacity * falloff;
     let alpha_min = options.projection.alpha_min as f32;
     if raw < alpha_min {
         return None;
     }
     let alpha = raw.min(options.alpha_max);
-    Some(match options.cutoff {
+    let alpha = match options.cutoff {
         Cutoff::Hard => alpha,
         Cutoff::Smooth => {
             let t = ((raw - alpha_min) / SMOOTH_CUTOFF_BAND).min(1.0);
             alpha * t * t * (3.0 - 2.0 * t)
         }
-    })
+    };
+    Some(AlphaSample { alpha, falloff })
 }
 
 /// Output buffers for one band of tiles (TILE_SIZE image rows).
@@ -77,7 +88,7 @@ pub fn blend_band(
                         continue;
                     }
                     let dx = s.mean[0] - (px as f32 + 0.5);
-                    let Some(alpha) = splat_alpha(s, dx, dy, options) else { continue };
+                    let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
                     let next = trans[p] * (1.0 - alpha);
                     if next <= options.transmittance_min {
                         done[p] = true;

@@ -7,7 +7,7 @@
 //! gradients into its own slice, and the per-splat sums are then taken in a fixed tile order,
 //! so the result does not depend on the number of threads.
 
-use pwgs_decoder::raster::blend::SMOOTH_CUTOFF_BAND;
+use pwgs_decoder::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
 use pwgs_decoder::raster::project::Splat;
 use pwgs_decoder::raster::{Cutoff, RenderOptions, Rendered};
 use rayon::prelude::*;
@@ -35,26 +35,11 @@ impl SplatGrad {
     }
 }
 
-/// Alpha of a splat at a pixel and d alpha / d(opacity * exp(-sigma)), mirroring the forward
-/// pass's [`pwgs_decoder::raster::blend::splat_alpha`] decision for decision.
-struct AlphaEval {
-    alpha: f64,
-    /// exp(-sigma).
-    gaussian: f64,
-    d_alpha_d_raw: f64,
-}
-
-fn eval_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Option<AlphaEval> {
-    // The forward decision (contributes or not) is taken by the forward's own function, in f32,
-    // so that both passes skip exactly the same splats.
-    let alpha = pwgs_decoder::raster::blend::splat_alpha(s, dx, dy, options)?;
-    let [a, b, c] = s.conic.map(f64::from);
-    let (dx, dy) = (dx as f64, dy as f64);
-    let sigma = 0.5 * (a * dx * dx + c * dy * dy) + b * dx * dy;
-    let gaussian = (-sigma).exp();
-    let raw = s.opacity as f64 * gaussian;
+/// d alpha / d(opacity * falloff) at a sample, following the forward's clamp and cutoff.
+fn alpha_slope(s: &Splat, falloff: f64, options: &RenderOptions) -> f64 {
+    let raw = s.opacity as f64 * falloff;
     let clamp_slope = if raw < options.alpha_max as f64 { 1.0 } else { 0.0 };
-    let d_alpha_d_raw = match options.cutoff {
+    match options.cutoff {
         Cutoff::Hard => clamp_slope,
         Cutoff::Smooth => {
             let band = SMOOTH_CUTOFF_BAND as f64;
@@ -63,12 +48,29 @@ fn eval_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Option<Al
             let d_smooth = if t < 1.0 { 6.0 * t * (1.0 - t) / band } else { 0.0 };
             clamp_slope * smooth + raw.min(options.alpha_max as f64) * d_smooth
         }
-    };
-    Some(AlphaEval { alpha: alpha as f64, gaussian, d_alpha_d_raw })
+    }
+}
+
+/// Per-pixel state of the backward walk through one tile.
+struct PixelState {
+    /// dL/d(color) of the pixel.
+    v_color: [f64; 3],
+    /// Transmittance in front of the splat being visited (recovered by division).
+    transmittance: f64,
+    /// Final transmittance, and background . v_color.
+    t_final: f64,
+    bg_term: f64,
+    /// Color of everything behind the splat being visited, as seen from it.
+    behind: [f64; 3],
+    /// Splats at tile positions >= this were not blended into the pixel.
+    last: usize,
 }
 
 /// Gradients of every visible splat (indexed like `rendered.splats`) given dL/d(color) per
 /// pixel (`v_color`, interleaved RGB like the image).
+///
+/// Within a tile, splats are visited back to front and each only over its own pixel box, so
+/// the work is that of the forward pass, not pixels x splats.
 pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f32]) -> Vec<SplatGrad> {
     let (width, height) = (rendered.color.width, rendered.color.height);
     assert_eq!(v_color.len(), rendered.color.data.len(), "v_color must match the image");
@@ -86,42 +88,55 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
     slices.into_par_iter().enumerate().for_each(|(t, grads)| {
         let entries = bins.tile(t);
         let [x0, x1, y0, y1] = bins.tile_rect(t, width, height);
+        let tw = (x1 - x0) as usize;
+        let mut pixels: Vec<PixelState> = Vec::with_capacity(tw * (y1 - y0) as usize);
         for py in y0..y1 {
             for px in x0..x1 {
                 let p = (py * width + px) as usize;
-                let last = rendered.last_contributor[p] as usize;
-                if last == 0 {
-                    continue;
-                }
-                let v_c = [v_color[p * 3], v_color[p * 3 + 1], v_color[p * 3 + 2]].map(f64::from);
+                let v = [v_color[p * 3], v_color[p * 3 + 1], v_color[p * 3 + 2]].map(f64::from);
                 let t_final = rendered.transmittance[p] as f64;
-                let bg_term: f64 = (0..3).map(|c| options.background[c] as f64 * v_c[c]).sum();
-                let mut trans = t_final;
-                // Color of everything behind the current splat, weighted as seen from it.
-                let mut behind = [0.0f64; 3];
-                for k in (0..last).rev() {
-                    let s = &rendered.splats[entries[k] as usize];
-                    let [bx0, bx1, by0, by1] = s.bbox;
-                    if px < bx0 || px >= bx1 || py < by0 || py >= by1 {
+                pixels.push(PixelState {
+                    v_color: v,
+                    transmittance: t_final,
+                    t_final,
+                    bg_term: (0..3).map(|c| options.background[c] as f64 * v[c]).sum(),
+                    behind: [0.0; 3],
+                    last: rendered.last_contributor[p] as usize,
+                });
+            }
+        }
+        let deepest = pixels.iter().map(|p| p.last).max().unwrap_or(0);
+        for k in (0..deepest).rev() {
+            let s = &rendered.splats[entries[k] as usize];
+            let [bx0, bx1, by0, by1] = s.bbox;
+            let [a, b, c] = s.conic.map(f64::from);
+            let opacity = s.opacity as f64;
+            let color = s.color.map(f64::from);
+            let g = &mut grads[k];
+            for py in by0.max(y0)..by1.min(y1) {
+                for px in bx0.max(x0)..bx1.min(x1) {
+                    let state = &mut pixels[(py - y0) as usize * tw + (px - x0) as usize];
+                    if k >= state.last {
                         continue;
                     }
                     let dx = s.mean[0] - (px as f32 + 0.5);
                     let dy = s.mean[1] - (py as f32 + 0.5);
-                    let Some(e) = eval_alpha(s, dx, dy, options) else { continue };
-                    let ra = 1.0 / (1.0 - e.alpha);
-                    trans *= ra;
-                    let g = &mut grads[k];
-                    let mut v_alpha = -t_final * ra * bg_term;
-                    for c in 0..3 {
-                        g.color[c] += e.alpha * trans * v_c[c];
-                        v_alpha += (s.color[c] as f64 * trans - behind[c] * ra) * v_c[c];
-                        behind[c] += s.color[c] as f64 * e.alpha * trans;
+                    let Some(sample) = splat_alpha(s, dx, dy, options) else { continue };
+                    let alpha = sample.alpha as f64;
+                    let falloff = sample.falloff as f64;
+                    let ra = 1.0 / (1.0 - alpha);
+                    state.transmittance *= ra;
+                    let trans = state.transmittance;
+                    let mut v_alpha = -state.t_final * ra * state.bg_term;
+                    for ch in 0..3 {
+                        g.color[ch] += alpha * trans * state.v_color[ch];
+                        v_alpha += (color[ch] * trans - state.behind[ch] * ra) * state.v_color[ch];
+                        state.behind[ch] += color[ch] * alpha * trans;
                     }
-                    let v_raw = v_alpha * e.d_alpha_d_raw;
-                    g.opacity += e.gaussian * v_raw;
-                    let v_sigma = -(s.opacity as f64) * e.gaussian * v_raw;
+                    let v_raw = v_alpha * alpha_slope(s, falloff, options);
+                    g.opacity += falloff * v_raw;
+                    let v_sigma = -opacity * falloff * v_raw;
                     let (dx, dy) = (dx as f64, dy as f64);
-                    let [a, b, c] = s.conic.map(f64::from);
                     g.conic[0] += 0.5 * dx * dx * v_sigma;
                     g.conic[1] += dx * dy * v_sigma;
                     g.conic[2] += 0.5 * dy * dy * v_sigma;

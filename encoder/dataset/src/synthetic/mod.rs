@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::DatasetError;
-use noise::SplitMix64;
+use pwgs_decoder::random_scene::SplitMix64;
 
 /// What to generate.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -128,12 +128,13 @@ fn validate(dir: &Path, options: &SyntheticOptions) -> Result<(), DatasetError> 
 /// not coplanar. Options are not validated here (see [`generate`]); a zero size gives cameras
 /// that render empty images.
 pub fn cameras(options: &SyntheticOptions) -> Vec<Camera> {
-    let mut rng = SplitMix64::new(options.seed ^ CAMERA_SALT);
+    let mut rng = SplitMix64(options.seed ^ CAMERA_SALT);
     (0..options.views)
         .map(|index| {
-            let azimuth = std::f32::consts::TAU * (index as f32 + 0.3 * (rng.next_unit() - 0.5)) / options.views as f32;
-            let elevation = (ELEVATION_DEG + 10.0 * (rng.next_unit() - 0.5)).to_radians();
-            let distance = DISTANCE * (1.0 + 0.1 * (rng.next_unit() - 0.5));
+            let azimuth =
+                std::f32::consts::TAU * (index as f32 + 0.3 * (rng.uniform(0.0, 1.0) - 0.5)) / options.views as f32;
+            let elevation = (ELEVATION_DEG + 10.0 * (rng.uniform(0.0, 1.0) - 0.5)).to_radians();
+            let distance = DISTANCE * (1.0 + 0.1 * (rng.uniform(0.0, 1.0) - 0.5));
             let offset = Vec3::new(elevation.cos() * azimuth.cos(), elevation.sin(), elevation.cos() * azimuth.sin());
             look_at(options.width, options.height, TARGET + distance * offset, TARGET)
         })
@@ -192,23 +193,41 @@ fn pixel(camera: &Camera, seed: u64, column: u32, row: u32) -> Vec3 {
 
 /// SfM-like points: the surface points seen through random pixels of random views, with the
 /// shaded color there. Like SfM points they lie on visible surfaces, more densely where the
-/// views see more. `None` when too many rays miss the scene (never for the ring cameras).
+/// views see more. Rays that miss the scene give a point on the sky sphere (radius
+/// [`SKY_RADIUS`] around the scene center) with the sky's color, as SfM triangulates distant
+/// background features; without them training has nothing to cover the sky with. `None` when
+/// too few points were found (never for the ring cameras).
 fn sample_points(cameras: &[Camera], count: usize, seed: u64) -> Option<PointCloud> {
-    let mut rng = SplitMix64::new(seed ^ POINTS_SALT);
+    let mut rng = SplitMix64(seed ^ POINTS_SALT);
     let mut cloud = PointCloud::default();
     for _ in 0..count.saturating_mul(ATTEMPTS_PER_POINT) {
         if cloud.positions.len() == count {
             break;
         }
         let camera = &cameras[(rng.next_u64() % cameras.len() as u64) as usize];
-        let u = rng.next_unit() * camera.width as f32;
-        let v = rng.next_unit() * camera.height as f32;
-        if let Some(hit) = scene::intersect(camera.center(), camera.ray_direction(u, v)) {
-            cloud.positions.push(hit.point.to_array());
-            cloud.colors.push(scene::shade(&hit, seed).clamp(Vec3::ZERO, Vec3::ONE).to_array());
-        }
+        let u = rng.uniform(0.0, 1.0) * camera.width as f32;
+        let v = rng.uniform(0.0, 1.0) * camera.height as f32;
+        let (origin, direction) = (camera.center(), camera.ray_direction(u, v));
+        let (point, color) = match scene::intersect(origin, direction) {
+            Some(hit) => (hit.point, scene::shade(&hit, seed)),
+            None => (sky_sphere_point(origin, direction), scene::sky(direction)),
+        };
+        cloud.positions.push(point.to_array());
+        cloud.colors.push(color.clamp(Vec3::ZERO, Vec3::ONE).to_array());
     }
     (cloud.positions.len() == count).then_some(cloud)
+}
+
+/// Radius of the sphere, around [`TARGET`], on which sky points are placed: several times the
+/// camera distance, so the sky sits well behind the scene.
+const SKY_RADIUS: f32 = 4.0 * DISTANCE;
+
+/// Where a ray from inside the sky sphere leaves it.
+fn sky_sphere_point(origin: Vec3, direction: Vec3) -> Vec3 {
+    let offset = origin - TARGET;
+    let b = offset.dot(direction);
+    let c = offset.length_squared() - SKY_RADIUS * SKY_RADIUS;
+    origin + direction * (-b + (b * b - c).sqrt())
 }
 
 const PLY_FILE: &str = "points3d.ply";

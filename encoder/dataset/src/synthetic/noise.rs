@@ -24,25 +24,6 @@ pub(super) fn unit_low(h: u64) -> f32 {
     ((h >> 16) & 0xFF_FFFF) as f32 * (1.0 / 16_777_216.0)
 }
 
-/// The splitmix64 generator, for sequences (camera jitter, point sampling).
-pub(super) struct SplitMix64(u64);
-
-impl SplitMix64 {
-    pub(super) fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-
-    pub(super) fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(GOLDEN);
-        mix64(self.0)
-    }
-
-    /// Uniform in [0, 1).
-    pub(super) fn next_unit(&mut self) -> f32 {
-        unit(self.next_u64())
-    }
-}
-
 /// Hash of a 3D lattice point. Each coordinate is spread by a different odd constant before
 /// mixing, so neighboring points (and swapped coordinates) hash independently.
 pub(super) fn lattice(seed: u64, x: i32, y: i32, z: i32) -> u64 {

@@ -96,7 +96,7 @@ pub(super) fn radiance(origin: Vec3, direction: Vec3, seed: u64) -> Vec3 {
 
 /// The sky: a function of the direction only, so it is the same backdrop from every camera.
 /// Pale haze around the horizon, deepening to blue at the zenith and to grey-blue below.
-fn sky(direction: Vec3) -> Vec3 {
+pub(super) fn sky(direction: Vec3) -> Vec3 {
     let below = Vec3::new(0.58, 0.64, 0.70);
     let haze = Vec3::new(0.82, 0.87, 0.92);
     let zenith = Vec3::new(0.26, 0.47, 0.82);

@@ -190,9 +190,22 @@ fn points_lie_on_visible_surfaces() {
     let cameras = cameras(&options);
     let cloud = sample_points(&cameras, 400, options.seed).unwrap();
     assert_eq!(cloud.positions.len(), 400);
-    let mut on_objects = 0;
+    let (mut on_objects, mut in_sky) = (0, 0);
     for (position, color) in cloud.positions.iter().zip(&cloud.colors) {
         let p = Vec3::from_array(*position);
+        if ((p - TARGET).length() - SKY_RADIUS).abs() < 1e-3 * SKY_RADIUS {
+            // A sky point: seen by a camera through a ray that misses the scene.
+            in_sky += 1;
+            let seen = cameras.iter().any(|camera| {
+                let direction = (p - camera.center()).normalize();
+                let inside = camera.project(p).is_some_and(|(u, v)| {
+                    (0.0..camera.width as f32).contains(&u) && (0.0..camera.height as f32).contains(&v)
+                });
+                inside && intersect(camera.center(), direction).is_none()
+            });
+            assert!(seen, "sky point {p} is not seen past the scene by any camera");
+            continue;
+        }
         assert!(p.y >= -1e-4, "{p} is below the ground");
         assert!(color.iter().all(|c| (0.0..=1.0).contains(c)), "{color:?}");
         let distance = OBJECTS.iter().map(|object| surface_distance(object.shape, p)).fold(f32::MAX, f32::min);
@@ -209,6 +222,7 @@ fn points_lie_on_visible_surfaces() {
         assert!(seen, "{p} is not seen by any camera");
     }
     assert!(on_objects > 40, "only {on_objects} of 400 points are on the objects");
+    assert!(in_sky > 0 && in_sky < 200, "{in_sky} of 400 points are in the sky");
 }
 
 #[test]

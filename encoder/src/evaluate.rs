@@ -1,0 +1,82 @@
+//! Evaluation on a dataset's test views: render each, compare with the ground truth (PSNR, and
+//! SSIM in the 3DGS zero-padded convention that published 3DGS numbers use), optionally save
+//! the renders.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_dataset::Dataset;
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::rgb_image::RgbImage;
+use serde::Serialize;
+
+use crate::metrics::psnr::psnr;
+use crate::metrics::ssim::{SsimConvention, ssim};
+
+/// Quality of one rendered test view.
+#[derive(Debug, Clone, Serialize)]
+pub struct ViewScore {
+    pub name: String,
+    pub psnr: f64,
+    /// 3DGS convention (zero-padded windows).
+    pub ssim: f64,
+    pub render_seconds: f64,
+}
+
+/// Mean scores over views.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct MeanScore {
+    pub psnr: f64,
+    pub ssim: f64,
+}
+
+impl MeanScore {
+    pub fn of(views: &[ViewScore]) -> Self {
+        let n = views.len().max(1) as f64;
+        Self {
+            psnr: views.iter().map(|v| v.psnr).sum::<f64>() / n,
+            ssim: views.iter().map(|v| v.ssim).sum::<f64>() / n,
+        }
+    }
+}
+
+fn nchw(image: &RgbImage, device: &Device) -> Tensor<4> {
+    let (w, h) = (image.width as usize, image.height as usize);
+    Tensor::<3>::from_data(TensorData::new(image.data.clone(), [h, w, 3]), device).permute([2, 0, 1]).unsqueeze()
+}
+
+/// SSIM of two images, 3DGS convention, on the CPU backend.
+pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
+    let device = Device::flex();
+    let value = ssim(nchw(a, &device), nchw(b, &device), SsimConvention::ZeroPadded);
+    value.into_data().convert::<f64>().try_into_vec::<f64>().expect("scalar")[0]
+}
+
+/// Renders every test view, optionally saving `<out>/<name>.png`, and scores it with PSNR.
+pub fn evaluate(g: &Gaussians, data: &Dataset, options: &RenderOptions, out: Option<&Path>) -> Result<Vec<ViewScore>> {
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    data.test
+        .iter()
+        .map(|view| {
+            let start = Instant::now();
+            let image = render(g, &view.camera, options);
+            let render_seconds = start.elapsed().as_secs_f64();
+            if let Some(dir) = out {
+                let stem =
+                    Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
+                image.save_png(&dir.join(format!("{stem}.png")))?;
+            }
+            Ok(ViewScore {
+                name: view.name.clone(),
+                psnr: psnr(&image, &view.image),
+                ssim: ssim_3dgs(&image, &view.image),
+                render_seconds,
+            })
+        })
+        .collect()
+}

@@ -1,0 +1,334 @@
+//! Training of plain 3D Gaussians on Burn: the 3DGS recipe (Adam with per-parameter learning
+//! rates and a decaying position rate scaled by the scene extent, SH bands enabled one at a
+//! time, loss 0.8 L1 + 0.2 (1 - SSIM), adaptive density control with opacity resets) on the
+//! rasterizer op of [`crate::splat_op`].
+//!
+//! Training never writes a non-finite value into the model: after every step the parameters
+//! are checked, and a step that produced NaN or infinity is undone (see [`Trainer::step`]).
+
+pub mod adam;
+pub mod densify;
+pub mod params;
+
+use std::time::Instant;
+
+use anyhow::{Result, bail};
+use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_dataset::{Dataset, View};
+use pwgs_decoder::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
+use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::raster::RenderOptions;
+
+use crate::metrics::ssim::{SsimConvention, ssim};
+use crate::splat_op::{SplatView, render};
+use adam::{LearningRates, Moments};
+use densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset_opacity};
+use params::{PARAM_NAMES, SplatParams, tensor_values};
+
+/// Training settings. [`TrainConfig::for_iterations`] gives the 3DGS defaults with the
+/// schedule fitted to a run length.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainConfig {
+    pub iterations: u32,
+    /// Highest SH degree; one more band is enabled every `sh_interval` iterations.
+    pub sh_degree: u32,
+    pub sh_interval: u32,
+    /// Position learning rate at the start and the end (times the scene extent), decayed
+    /// log-linearly.
+    pub lr_position: [f32; 2],
+    pub lr_log_scales: f32,
+    pub lr_rotations: f32,
+    pub lr_opacity: f32,
+    pub lr_sh_dc: f32,
+    /// Rate of the view-dependent SH bands (3DGS: the DC rate / 20).
+    pub lr_sh_rest: f32,
+    /// Weight of (1 - SSIM) in the loss; L1 gets the rest.
+    pub ssim_weight: f32,
+    pub densify_from: u32,
+    pub densify_until: u32,
+    pub densify_every: u32,
+    pub opacity_reset_every: u32,
+    pub densify: DensifyConfig,
+    pub background: [f32; 3],
+    pub seed: u64,
+}
+
+impl TrainConfig {
+    /// 3DGS's settings, with densification over the first half of the run (3DGS: 500 to
+    /// 15,000 of 30,000 iterations) and SH bands spread over the first half.
+    pub fn for_iterations(iterations: u32) -> Self {
+        Self {
+            iterations,
+            sh_degree: MAX_SH_DEGREE,
+            sh_interval: (iterations / 6).clamp(1, 1000),
+            lr_position: [1.6e-4, 1.6e-6],
+            lr_log_scales: 5e-3,
+            lr_rotations: 1e-3,
+            lr_opacity: 5e-2,
+            lr_sh_dc: 2.5e-3,
+            lr_sh_rest: 2.5e-3 / 20.0,
+            ssim_weight: 0.2,
+            densify_from: 500.min(iterations / 10),
+            densify_until: iterations / 2,
+            densify_every: 100,
+            opacity_reset_every: 3000,
+            densify: DensifyConfig::default(),
+            background: [0.0; 3],
+            seed: 0,
+        }
+    }
+
+    fn learning_rates(&self, iteration: u32, extent: f32) -> LearningRates {
+        let t = iteration as f32 / self.iterations.max(1) as f32;
+        let [start, end] = self.lr_position;
+        let position = (start.ln() * (1.0 - t) + end.ln() * t).exp() * extent;
+        LearningRates {
+            means: position,
+            log_scales: self.lr_log_scales,
+            rotations: self.lr_rotations,
+            opacity_logits: self.lr_opacity,
+            sh_dc: self.lr_sh_dc,
+            sh_rest: self.lr_sh_rest,
+        }
+    }
+
+    /// Active SH degree at an iteration.
+    pub fn active_degree(&self, iteration: u32) -> u32 {
+        (iteration / self.sh_interval.max(1)).min(self.sh_degree)
+    }
+}
+
+/// A training view with its ground truth uploaded once.
+struct TrainView {
+    camera: pwgs_decoder::camera::Camera,
+    /// [H, W, 3]
+    target: Tensor<3>,
+}
+
+/// What one step reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepReport {
+    pub loss: f32,
+    pub psnr: f32,
+    pub gaussians: usize,
+    pub densified: Option<DensifyReport>,
+}
+
+/// The training state.
+pub struct Trainer {
+    pub config: TrainConfig,
+    pub params: SplatParams,
+    moments: Moments,
+    stats: GradStats,
+    views: Vec<TrainView>,
+    order: Vec<usize>,
+    extent: f32,
+    rng: SplitMix64,
+    device: Device,
+    /// Next iteration, from 0.
+    pub iteration: u32,
+    /// Consecutive steps undone because they produced non-finite values.
+    failed_steps: u32,
+}
+
+fn upload_image(view: &View, device: &Device) -> Tensor<3> {
+    let (w, h) = (view.image.width as usize, view.image.height as usize);
+    Tensor::from_data(TensorData::new(view.image.data.clone(), [h, w, 3]), device)
+}
+
+impl Trainer {
+    /// Prepares training of `initial` (SH padded to the full degree) on the dataset's
+    /// training views.
+    pub fn new(config: TrainConfig, dataset: &Dataset, initial: &Gaussians, device: Device) -> Result<Self> {
+        if initial.is_empty() {
+            bail!("nothing to train: the initial model has no Gaussians");
+        }
+        if dataset.train.is_empty() {
+            bail!("the dataset has no training views");
+        }
+        let params = SplatParams::from_gaussians(initial, &device);
+        let views =
+            dataset.train.iter().map(|v| TrainView { camera: v.camera, target: upload_image(v, &device) }).collect();
+        Ok(Self {
+            moments: Moments::zeros_like(&params),
+            stats: GradStats::new(params.len()),
+            params,
+            views,
+            order: Vec::new(),
+            extent: dataset.normalization.scale,
+            rng: SplitMix64(config.seed),
+            device,
+            iteration: 0,
+            failed_steps: 0,
+            config,
+        })
+    }
+
+    /// The next view in a random order that visits every view once per epoch.
+    fn next_view(&mut self) -> usize {
+        if self.order.is_empty() {
+            self.order = (0..self.views.len()).collect();
+            for i in (1..self.order.len()).rev() {
+                let j = (self.rng.next_u64() % (i as u64 + 1)) as usize;
+                self.order.swap(i, j);
+            }
+        }
+        self.order.pop().expect("refilled above")
+    }
+
+    /// One optimization step on one view, then density control when it is due.
+    ///
+    /// If the step leaves a non-finite value in any parameter (or the loss is not finite),
+    /// the step is undone and that parameter's Adam moments are cleared; after three such
+    /// steps in a row training stops with an error naming the parameter, and the model holds
+    /// the last good state.
+    pub fn step(&mut self) -> Result<StepReport> {
+        let it = self.iteration;
+        let view_index = self.next_view();
+        let camera = self.views[view_index].camera;
+        let target = self.views[view_index].target.clone();
+        let degree = self.config.active_degree(it);
+        let n = self.params.len();
+        let p = &self.params;
+        let track = |t: Tensor<2>| t.autodiff().require_grad();
+        let means = track(p.means.clone());
+        let log_scales = track(p.log_scales.clone());
+        let rotations = track(p.rotations.clone());
+        let opacity = p.opacity_logits.clone().autodiff().require_grad();
+        let sh = p.sh.clone().autodiff().require_grad();
+        let probe = Tensor::<1>::zeros([n], &self.device).autodiff().require_grad();
+        let active_sh = sh.clone().slice([0..n, 0..sh_coeff_count(degree), 0..3]);
+        let view =
+            SplatView { camera, options: RenderOptions { background: self.config.background, ..Default::default() } };
+        let image = render(
+            means.clone(),
+            log_scales.clone(),
+            rotations.clone(),
+            opacity.clone(),
+            active_sh,
+            probe.clone(),
+            view,
+        );
+        let target = target.autodiff();
+        let l1 = (image.clone() - target.clone()).abs().mean();
+        let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
+        let structural = ssim(to_nchw(image.clone()), to_nchw(target.clone()), SsimConvention::ZeroPadded);
+        let w = self.config.ssim_weight;
+        let loss = l1 * (1.0 - w) + (structural.neg() + 1.0) * w;
+        let mse = (image.inner() - target.inner()).powi_scalar(2).mean();
+        let grads = loss.backward();
+        let loss_value = tensor_values(loss.inner())[0];
+        let psnr = -10.0 * tensor_values(mse)[0].log10();
+
+        let grad = |g: Option<Tensor<2>>, like: &Tensor<2>| g.unwrap_or_else(|| like.zeros_like());
+        let g = SplatParams {
+            means: grad(means.grad(&grads), &p.means),
+            log_scales: grad(log_scales.grad(&grads), &p.log_scales),
+            rotations: grad(rotations.grad(&grads), &p.rotations),
+            opacity_logits: opacity.grad(&grads).unwrap_or_else(|| p.opacity_logits.zeros_like()),
+            sh: sh.grad(&grads).unwrap_or_else(|| p.sh.zeros_like()),
+        };
+        // 3DGS thresholds the gradient with respect to normalized device coordinates, which
+        // span the image with 2 units: d/d(ndc) = d/d(pixel) * size / 2.
+        let ndc = 0.5 * camera.width.max(camera.height) as f32;
+        let screen: Vec<f32> = probe
+            .grad(&grads)
+            .map(|t| tensor_values(t).into_iter().map(|v| v * ndc).collect())
+            .unwrap_or_else(|| vec![0.0; n]);
+
+        let lr = self.config.learning_rates(it, self.extent);
+        let previous = (self.params.clone(), self.moments.clone());
+        let updated = self.moments.step(self.params.clone(), g, &lr, it + 1);
+        if let Some(bad) = non_finite_parameter(&updated, loss_value) {
+            self.params = previous.0;
+            self.moments = Moments::zeros_like(&self.params);
+            self.failed_steps += 1;
+            self.iteration += 1;
+            if self.failed_steps >= 3 {
+                bail!(
+                    "training diverged: {bad} became non-finite at iteration {it} three steps in a row; the last good model is kept"
+                );
+            }
+            eprintln!("warning: iteration {it}: {bad} became non-finite; step undone, optimizer state reset");
+            return Ok(StepReport { loss: f32::NAN, psnr: f32::NAN, gaussians: n, densified: None });
+        }
+        self.failed_steps = 0;
+        self.params = updated;
+        self.stats.add(&screen);
+        self.iteration += 1;
+        let densified = self.control_density();
+        Ok(StepReport { loss: loss_value, psnr, gaussians: self.params.len(), densified })
+    }
+
+    /// Densification, pruning and opacity resets on their schedule.
+    fn control_density(&mut self) -> Option<DensifyReport> {
+        let it = self.iteration;
+        let c = &self.config;
+        let densify_now = it > c.densify_from && it <= c.densify_until && it % c.densify_every == 0;
+        let reset_now = it <= c.densify_until && it % c.opacity_reset_every == 0;
+        if !densify_now && !reset_now {
+            return None;
+        }
+        let mut state = HostState {
+            params: self.params.to_host(),
+            first: self.moments.first.to_host(),
+            second: self.moments.second.to_host(),
+        };
+        let mut report = None;
+        if densify_now {
+            let prune_large = it > c.opacity_reset_every;
+            let (next, r) = densify(&state, &self.stats, &c.densify, self.extent, prune_large, &mut self.rng);
+            state = next;
+            report = Some(r);
+            self.stats = GradStats::new(state.params[0].len());
+        }
+        if reset_now {
+            reset_opacity(&mut state, 0.01);
+        }
+        self.params = SplatParams::from_host(&state.params, &self.device);
+        self.moments = Moments {
+            first: SplatParams::from_host(&state.first, &self.device),
+            second: SplatParams::from_host(&state.second, &self.device),
+        };
+        report
+    }
+
+    /// The current model, SH at the active degree.
+    pub fn gaussians(&self) -> Gaussians {
+        self.params.to_gaussians(self.config.active_degree(self.iteration))
+    }
+}
+
+/// The name of the first parameter holding NaN or infinity, or "the loss".
+fn non_finite_parameter(p: &SplatParams, loss: f32) -> Option<&'static str> {
+    if !loss.is_finite() {
+        return Some("the loss");
+    }
+    p.to_host().iter().zip(PARAM_NAMES).find(|(rows, _)| !rows.data.iter().all(|v| v.is_finite())).map(|(_, name)| name)
+}
+
+/// Timing and outcome of a whole run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct TrainSummary {
+    pub iterations: u32,
+    pub seconds: f64,
+    pub gaussians: usize,
+    pub final_loss: f32,
+}
+
+/// Runs every remaining iteration, calling `progress` after each.
+pub fn train(trainer: &mut Trainer, mut progress: impl FnMut(u32, &StepReport)) -> Result<TrainSummary> {
+    let start = Instant::now();
+    let mut last = None;
+    while trainer.iteration < trainer.config.iterations {
+        let report = trainer.step()?;
+        progress(trainer.iteration, &report);
+        last = Some(report);
+    }
+    Ok(TrainSummary {
+        iterations: trainer.iteration,
+        seconds: start.elapsed().as_secs_f64(),
+        gaussians: trainer.params.len(),
+        final_loss: last.map_or(f32::NAN, |r| r.loss),
+    })
+}

@@ -1,0 +1,90 @@
+//! Wasserstein Distortion on VGG16 features: the third-party cross-check value of
+//! `shared/metrics-calib/README.md`, the target cache, and (ignored by default) the time of a
+//! forward+backward pass at 504x378. Needs the weights; skips with a message when neither
+//! `shared/weights` nor the user cache has them.
+
+use std::path::Path;
+use std::time::Instant;
+
+use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_encoder::metrics::sigma_map::Log2Sigma;
+use pwgs_encoder::metrics::vgg_wasserstein::VggWasserstein;
+use pwgs_encoder::metrics::weights::default_dirs;
+
+fn load(device: &Device) -> Option<VggWasserstein> {
+    let mut dirs = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/weights")];
+    dirs.extend(default_dirs());
+    match VggWasserstein::load(&dirs, device) {
+        Ok(wd) => Some(wd),
+        Err(e) => {
+            eprintln!("skipping: {e}");
+            None
+        }
+    }
+}
+
+/// NCHW pattern image: value ((idx·multiplier + offset) mod 256) / 255 at flat index idx.
+fn pattern(shape: [usize; 4], multiplier: usize, offset: usize, device: &Device) -> Tensor<4> {
+    let n: usize = shape.iter().product();
+    let values: Vec<f32> = (0..n).map(|i| ((i * multiplier + offset) % 256) as f32 / 255.0).collect();
+    Tensor::from_data(TensorData::new(values, shape), device)
+}
+
+fn scalar(t: Tensor<1>) -> f64 {
+    t.into_scalar::<f32>() as f64
+}
+
+#[test]
+fn matches_the_third_party_value_and_caches_the_target() {
+    let device = Device::flex();
+    let Some(wd) = load(&device) else { return };
+    let a = pattern([1, 3, 64, 64], 37, 0, &device);
+    let b = pattern([1, 3, 64, 64], 73, 19, &device);
+    let sigma = Log2Sigma::Constant(2.0);
+    let value = scalar(wd.distortion_pair(a.clone(), b.clone(), &sigma));
+    let reference = 10.540908813476562;
+    let relative = (value - reference).abs() / reference;
+    println!("VGG WD 64x64, log2σ=2: {value:.9} (third party {reference}, relative difference {relative:.1e})");
+    // A float32 value from another implementation: agreement to float32 accumulation error.
+    assert!(relative < 1e-5, "{value} vs {reference}");
+    let target = wd.target(b);
+    assert_eq!(scalar(wd.distortion(a.clone(), &target, &sigma)), value as f32 as f64);
+    assert_eq!(scalar(wd.distortion(a.clone(), &wd.target(a), &sigma)), 0.0);
+}
+
+#[test]
+fn gradient_reaches_every_pixel() {
+    let device = Device::flex().autodiff();
+    let Some(wd) = load(&device) else { return };
+    let a = pattern([1, 3, 64, 64], 37, 0, &device).require_grad();
+    let target = wd.target(pattern([1, 3, 64, 64], 73, 19, &device));
+    let grads = wd.distortion(a.clone(), &target, &Log2Sigma::Constant(2.0)).backward();
+    let g: Vec<f32> = a.grad(&grads).unwrap().into_data().convert::<f32>().try_into_vec::<f32>().unwrap();
+    assert!(g.iter().all(|v| v.is_finite()));
+    assert!(g.iter().filter(|v| **v != 0.0).count() == g.len(), "some pixels get no gradient");
+}
+
+/// `cargo test --release -p pwgs-encoder --test metrics_wd_vgg -- --ignored --nocapture`
+#[test]
+#[ignore = "timing at 504x378: tens of seconds"]
+fn forward_backward_time_at_504x378() {
+    let device = Device::flex().autodiff();
+    let Some(wd) = load(&device) else { return };
+    let shape = [1, 3, 378, 504];
+    let target = wd.target(pattern(shape, 73, 19, &device));
+    for sigma in [2.0, 4.0] {
+        for _ in 0..2 {
+            let image = pattern(shape, 37, 0, &device).require_grad();
+            let start = Instant::now();
+            let loss = wd.distortion(image.clone(), &target, &Log2Sigma::Constant(sigma));
+            let value = scalar(loss.clone());
+            let forward = start.elapsed().as_secs_f64();
+            let grads = loss.backward();
+            let g = image.grad(&grads).unwrap().abs().sum().into_scalar::<f32>();
+            let total = start.elapsed().as_secs_f64();
+            println!(
+                "504x378 log2σ={sigma}: WD {value:.4}, forward {forward:.2} s, forward+backward {total:.2} s (|grad|₁ {g:.3e})"
+            );
+        }
+    }
+}

