@@ -35,6 +35,24 @@ impl SplatGrad {
     }
 }
 
+/// A [`SplatGrad`] in f32: mean (2), conic (3), opacity, color (3).
+#[derive(Debug, Clone, Copy, Default)]
+struct EntryGrad([f32; 9]);
+
+impl From<&SplatGrad> for EntryGrad {
+    fn from(g: &SplatGrad) -> Self {
+        let v = [g.mean[0], g.mean[1], g.conic[0], g.conic[1], g.conic[2], g.opacity, g.color[0], g.color[1], g.color[2]];
+        Self(v.map(|x| x as f32))
+    }
+}
+
+impl EntryGrad {
+    fn widen(&self) -> SplatGrad {
+        let v = self.0.map(f64::from);
+        SplatGrad { mean: [v[0], v[1]], conic: [v[2], v[3], v[4]], opacity: v[5], color: [v[6], v[7], v[8]] }
+    }
+}
+
 /// d alpha / d(opacity * falloff) at a sample, following the forward's clamp and cutoff.
 fn alpha_slope(s: &Splat, falloff: f64, options: &RenderOptions) -> f64 {
     let raw = s.opacity as f64 * falloff;
@@ -76,9 +94,11 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
     assert_eq!(v_color.len(), rendered.color.data.len(), "v_color must match the image");
     let bins = &rendered.bins;
     let tile_count = (bins.tiles_x * bins.tiles_y) as usize;
-    let mut per_entry = vec![SplatGrad::default(); bins.entries.len()];
+    // One gradient per (tile, splat) entry, in f32 to halve the traffic: each sums at most
+    // 256 pixels; the sums over tiles below run in f64.
+    let mut per_entry = vec![EntryGrad::default(); bins.entries.len()];
     // Split the per-entry buffer into one slice per tile so tiles can run in parallel.
-    let mut slices: Vec<&mut [SplatGrad]> = Vec::with_capacity(tile_count);
+    let mut slices: Vec<&mut [EntryGrad]> = Vec::with_capacity(tile_count);
     let mut rest = per_entry.as_mut_slice();
     for t in 0..tile_count {
         let (head, tail) = rest.split_at_mut(bins.offsets[t + 1] - bins.offsets[t]);
@@ -112,7 +132,7 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
             let [a, b, c] = s.conic.map(f64::from);
             let opacity = s.opacity as f64;
             let color = s.color.map(f64::from);
-            let g = &mut grads[k];
+            let mut g = SplatGrad::default();
             for py in by0.max(y0)..by1.min(y1) {
                 for px in bx0.max(x0)..bx1.min(x1) {
                     let state = &mut pixels[(py - y0) as usize * tw + (px - x0) as usize];
@@ -144,11 +164,12 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
                     g.mean[1] += (b * dx + c * dy) * v_sigma;
                 }
             }
+            grads[k] = EntryGrad::from(&g);
         }
     });
     let mut totals = vec![SplatGrad::default(); rendered.splats.len()];
     for (entry, grad) in bins.entries.iter().zip(&per_entry) {
-        totals[*entry as usize].add(grad);
+        totals[*entry as usize].add(&grad.widen());
     }
     totals
 }

@@ -146,7 +146,13 @@ impl Trainer {
         if dataset.train.is_empty() {
             bail!("the dataset has no training views");
         }
+        if !initial.is_consistent() {
+            bail!("the initial model's arrays have inconsistent lengths");
+        }
         let params = SplatParams::from_gaussians(initial, &device);
+        if let Some(bad) = non_finite_parameter(&params, 0.0) {
+            bail!("the initial model has NaN or infinite {bad}; repair or drop those Gaussians first");
+        }
         let views =
             dataset.train.iter().map(|v| TrainView { camera: v.camera, target: upload_image(v, &device) }).collect();
         Ok(Self {

@@ -1,0 +1,80 @@
+//! Training on the generated scene: it learns, it never keeps a non-finite value, and a model
+//! exported to PLY resumes exactly.
+
+use burn::tensor::Device;
+use pwgs_dataset::synthetic::{SyntheticOptions, generate};
+use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+use pwgs_decoder::raster::RenderOptions;
+use pwgs_encoder::evaluate::{MeanScore, evaluate};
+use pwgs_encoder::init::initial_gaussians;
+use pwgs_encoder::train::{TrainConfig, Trainer, train};
+
+fn small_scene(dir: &std::path::Path) -> Dataset {
+    let options = SyntheticOptions { width: 80, height: 60, views: 16, seed: 4, points: 1500 };
+    generate(dir, &options).unwrap();
+    load_scene(dir, &LoadOptions::default()).unwrap()
+}
+
+fn mean_psnr(g: &pwgs_decoder::gaussians::Gaussians, data: &Dataset) -> f64 {
+    MeanScore::of(&evaluate(g, data, &RenderOptions::default(), None).unwrap()).psnr
+}
+
+#[test]
+fn training_improves_the_test_views() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = small_scene(tmp.path());
+    let initial = initial_gaussians(&data, 0).unwrap();
+    let before = mean_psnr(&initial, &data);
+    let mut trainer = Trainer::new(TrainConfig::for_iterations(300), &data, &initial, Device::flex()).unwrap();
+    let summary = train(&mut trainer, |_, _| {}).unwrap();
+    assert_eq!(summary.iterations, 300);
+    let after = mean_psnr(&trainer.gaussians(), &data);
+    eprintln!("test-view PSNR {before:.2} dB at initialization, {after:.2} dB after 300 iterations");
+    assert!(after > before + 5.0, "training gained only {:.2} dB", after - before);
+    // Measured 22.9 dB when this test was written (80x60, 300 iterations, from 9.3 dB); 2 dB
+    // of margin absorbs platform differences in floating point and small schedule changes.
+    assert!(after > 20.9, "test-view PSNR {after:.2} dB");
+}
+
+#[test]
+fn a_diverging_step_is_undone_and_training_stops_with_the_last_good_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = small_scene(tmp.path());
+    let initial = initial_gaussians(&data, 0).unwrap();
+    let mut config = TrainConfig::for_iterations(50);
+    config.lr_log_scales = f32::INFINITY;
+    let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();
+    let error = train(&mut trainer, |_, _| {}).unwrap_err().to_string();
+    assert!(error.contains("log_scales") && error.contains("iteration 2"), "{error}");
+    let kept = trainer.gaussians();
+    assert_eq!(kept.log_scales, initial.log_scales, "the model holds the state before the bad steps");
+    assert!(kept.means.iter().flatten().chain(kept.sh.iter()).all(|v| v.is_finite()));
+}
+
+#[test]
+fn non_finite_initial_models_are_rejected() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = small_scene(tmp.path());
+    let mut initial = initial_gaussians(&data, 0).unwrap();
+    initial.opacity_logits[7] = f32::NAN;
+    let error = Trainer::new(TrainConfig::for_iterations(10), &data, &initial, Device::flex()).err().unwrap();
+    assert!(error.to_string().contains("opacity_logits"), "{error}");
+}
+
+#[test]
+fn training_resumes_from_an_exported_ply() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = small_scene(&tmp.path().join("scene"));
+    let initial = initial_gaussians(&data, 0).unwrap();
+    let mut trainer = Trainer::new(TrainConfig::for_iterations(60), &data, &initial, Device::flex()).unwrap();
+    train(&mut trainer, |_, _| {}).unwrap();
+    let trained = trainer.gaussians();
+    let path = tmp.path().join("model.ply");
+    pwgs_decoder::ply::write_gaussians(&path, &trained).unwrap();
+    let loaded = pwgs_decoder::ply::read_gaussians(&path).unwrap().gaussians;
+    assert_eq!(loaded, trained, "the PLY round trip is exact");
+    // A resumed run starts from exactly the exported model.
+    let resumed = Trainer::new(TrainConfig::for_iterations(10), &data, &loaded, Device::flex()).unwrap();
+    assert_eq!(resumed.params.to_gaussians(trained.sh_degree), trained);
+    assert_eq!(mean_psnr(&resumed.params.to_gaussians(trained.sh_degree), &data), mean_psnr(&trained, &data));
+}
