@@ -1,0 +1,60 @@
+//! `pwenc` end to end on a small generated scene, and its errors on bad input.
+
+use std::process::Command;
+
+fn pwenc(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().expect("pwenc runs")
+}
+
+#[test]
+fn trains_evaluates_and_writes_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let out = pwenc(&["generate-scene", &dir("scene"), "--width", "48", "--height", "36", "--views", "9"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = pwenc(&[
+        &dir("scene"),
+        "--iters",
+        "30",
+        "--export-ply",
+        &dir("model.ply"),
+        "--eval",
+        &dir("eval"),
+        "--report",
+        &dir("report.json"),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir("report.json")).unwrap()).unwrap();
+    assert_eq!(report["training"]["iterations"], 30);
+    assert_eq!(report["views"].as_array().unwrap().len(), 2);
+    assert!(report["mean"]["psnr"].as_f64().unwrap() > 8.0);
+    assert!(std::path::Path::new(&dir("eval")).join("view_008.png").is_file());
+    let model = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("model.ply"))).unwrap();
+    assert_eq!(model.gaussians.len() as u64, report["training"]["gaussians"].as_u64().unwrap());
+    // Resuming from the exported model works.
+    let out = pwenc(&[&dir("scene"), "--iters", "5", "--init-ply", &dir("model.ply")]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[test]
+fn bad_input_is_a_clear_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let missing = tmp.path().join("missing");
+    let scene = tmp.path().join("scene");
+    let scene = scene.to_str().unwrap();
+    assert!(pwenc(&["generate-scene", scene, "--width", "16", "--height", "12", "--views", "3"]).status.success());
+    for (args, needle) in [
+        (vec![missing.to_str().unwrap()], "does not exist"),
+        (vec!["generate-scene", tmp.path().join("s").to_str().unwrap(), "--width", "0"], "image size 0x120"),
+        (vec![tmp.path().to_str().unwrap(), "--background", "purple"], "purple"),
+        (vec![tmp.path().to_str().unwrap()], "no supported scene"),
+        (vec![scene, "--init-ply", missing.to_str().unwrap()], "missing"),
+        (vec![scene, "--downscale", "0"], "downscale"),
+    ] {
+        let out = pwenc(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(stderr.contains(needle), "{args:?}: `{stderr}` should mention `{needle}`");
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    }
+}
