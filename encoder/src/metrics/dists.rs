@@ -52,7 +52,7 @@ impl Dists {
         Self { vgg, alpha: split(alpha), beta: split(beta) }
     }
 
-    /// DISTS of each image pair of `a`, `b` [N, 3, H, W] in [0, 1]: [N] values, 0 for identical
+    /// DISTS of each image pair of `a`, `b` [N, 3, H, W] in [0, 1]: `[N]` values, 0 for identical
     /// images. Symmetric; differentiable in both.
     pub fn distance(&self, a: Tensor<4>, b: Tensor<4>) -> Tensor<1> {
         assert_eq!(a.dims(), b.dims(), "DISTS of images of different shapes");

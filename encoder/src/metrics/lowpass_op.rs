@@ -67,7 +67,7 @@ impl<C: CheckpointStrategy> LowpassBackend for Autodiff<Flex, C> {
     }
 }
 
-/// The binomial lowpass [[1,2,1],[2,4,2],[1,2,1]]/16 of every channel of `x` [N, C, H, W], zero
+/// The binomial lowpass `[[1,2,1],[2,4,2],[1,2,1]] / 16` of every channel of `x` [N, C, H, W], zero
 /// padding 1, stride 1; differentiable, with the fast backward on `flex`.
 pub fn binomial_lowpass(x: Tensor<4>) -> Tensor<4> {
     if matches!(x.device().without_autodiff().as_dispatch(), DispatchDevice::Flex(_)) {

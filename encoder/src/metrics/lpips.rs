@@ -48,7 +48,7 @@ impl Lpips {
         Ok(Self { vgg, heads })
     }
 
-    /// LPIPS of each image pair of `a`, `b` [N, 3, H, W] in [0, 1]: [N] values, 0 for identical
+    /// LPIPS of each image pair of `a`, `b` [N, 3, H, W] in [0, 1]: `[N]` values, 0 for identical
     /// images. Differentiable in both.
     pub fn distance(&self, a: Tensor<4>, b: Tensor<4>, input: LpipsInput) -> Tensor<1> {
         assert_eq!(a.dims(), b.dims(), "LPIPS of images of different shapes");

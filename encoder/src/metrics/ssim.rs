@@ -2,7 +2,7 @@
 //! boundary conventions that published numbers use.
 //!
 //! Per channel, with an 11x11 Gaussian window (sigma 1.5) giving local means mu, biased local
-//! variances sigma² = E[x²] - mu² and covariance sigma_ab:
+//! variances sigma² = E(x²) - mu² and covariance sigma_ab:
 //! `ssim = (2 mu_a mu_b + C1)(2 sigma_ab + C2) / ((mu_a² + mu_b² + C1)(sigma_a² + sigma_b² + C2))`,
 //! C1 = 0.01², C2 = 0.03² (data range 1), averaged over channels, pixels and the batch.
 
@@ -37,7 +37,7 @@ fn gaussian_taps() -> Vec<f64> {
     g.iter().map(|v| v / sum).collect()
 }
 
-/// Mean SSIM of `a` against `b`, both [N, C, H, W] with values in [0, 1]; returns a [1] tensor.
+/// Mean SSIM of `a` against `b`, both [N, C, H, W] with values in [0, 1]; returns a `[1]` tensor.
 ///
 /// Differentiable in both inputs, so a training loss is `0.8 * l1 + 0.2 * (1 - ssim(render, gt,
 /// SsimConvention::ZeroPadded))`. Panics if the shapes differ, or for [`SsimConvention::Valid`]

@@ -32,13 +32,6 @@ pub struct WdTarget {
     size: [usize; 4],
 }
 
-impl WdTarget {
-    /// [N, 3, H, W] of the image the features came from.
-    pub fn dims(&self) -> [usize; 4] {
-        self.size
-    }
-}
-
 /// WD with VGG16 features on one device.
 pub struct VggWasserstein {
     vgg: Vgg16,
@@ -48,10 +41,6 @@ impl VggWasserstein {
     /// Loads the VGG16 weights from the first of `dirs` holding them.
     pub fn load(dirs: &[PathBuf], device: &Device) -> Result<Self, WeightsError> {
         Ok(Self { vgg: Vgg16::load(dirs, device)? })
-    }
-
-    pub fn new(vgg: Vgg16) -> Self {
-        Self { vgg }
     }
 
     /// The 16 feature arrays of `x` [N, 3, H, W] in [0, 1]: the normalized image, then
@@ -82,7 +71,7 @@ impl VggWasserstein {
     }
 
     /// WD of `image` [N, 3, H, W] in [0, 1] against a cached target of the same size, with the
-    /// given log2σ (at the image's resolution). Returns a [1] tensor, differentiable in `image`.
+    /// given log2σ (at the image's resolution). Returns a `[1]` tensor, differentiable in `image`.
     pub fn distortion(&self, image: Tensor<4>, target: &WdTarget, log2_sigma: &Log2Sigma) -> Tensor<1> {
         assert_eq!(image.dims(), target.size, "WD image and target differ in size");
         let [_, _, height, width] = image.dims();

