@@ -185,9 +185,9 @@ impl Trainer {
     /// One optimization step on one view, then density control when it is due.
     ///
     /// If the step leaves a non-finite value in any parameter (or the loss is not finite),
-    /// the step is undone and that parameter's Adam moments are cleared; after three such
-    /// steps in a row training stops with an error naming the parameter, and the model holds
-    /// the last good state.
+    /// the step is undone and the Adam moments restart from zero; after three such steps in a
+    /// row training stops with an error naming the parameter, and the model holds the last
+    /// good state.
     pub fn step(&mut self) -> Result<StepReport> {
         let it = self.iteration;
         let view_index = self.next_view();
