@@ -270,8 +270,8 @@ impl Trainer {
     fn control_density(&mut self) -> Option<DensifyReport> {
         let it = self.iteration;
         let c = &self.config;
-        let densify_now = it > c.densify_from && it <= c.densify_until && it % c.densify_every == 0;
-        let reset_now = it <= c.densify_until && it % c.opacity_reset_every == 0;
+        let densify_now = it > c.densify_from && it <= c.densify_until && it.is_multiple_of(c.densify_every);
+        let reset_now = it <= c.densify_until && it.is_multiple_of(c.opacity_reset_every);
         if !densify_now && !reset_now {
             return None;
         }
