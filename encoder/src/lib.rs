@@ -4,6 +4,7 @@
 
 pub mod backward;
 pub mod evaluate;
+pub mod exit;
 pub mod init;
 pub mod metrics;
 pub mod splat_op;

@@ -258,14 +258,7 @@ fn encode(args: EncodeArgs) -> Result<()> {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(error) => {
-            // `{:#}` prints the whole chain of causes on one line, without a backtrace.
-            eprintln!("error: {error:#}");
-            ExitCode::FAILURE
-        }
-    }
+    pwgs_encoder::exit::report(run(Cli::parse()))
 }
 
 fn run(cli: Cli) -> Result<()> {
