@@ -6,13 +6,14 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::Device;
 use pwgs_dataset::Dataset;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::rgb_image::RgbImage;
 use serde::Serialize;
 
+use crate::metrics::image_tensor::image_tensor;
 use crate::metrics::psnr::psnr;
 use crate::metrics::ssim::{SsimConvention, ssim};
 
@@ -43,15 +44,10 @@ impl MeanScore {
     }
 }
 
-fn nchw(image: &RgbImage, device: &Device) -> Tensor<4> {
-    let (w, h) = (image.width as usize, image.height as usize);
-    Tensor::<3>::from_data(TensorData::new(image.data.clone(), [h, w, 3]), device).permute([2, 0, 1]).unsqueeze()
-}
-
 /// SSIM of two images, 3DGS convention, on the CPU backend.
 pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
     let device = Device::flex();
-    let value = ssim(nchw(a, &device), nchw(b, &device), SsimConvention::ZeroPadded);
+    let value = ssim(image_tensor(a, &device), image_tensor(b, &device), SsimConvention::ZeroPadded);
     value.into_data().convert::<f64>().try_into_vec::<f64>().expect("scalar")[0]
 }
 
