@@ -30,6 +30,17 @@ pub enum CameraError {
 /// matrix carrying scale or shear is still rejected.
 const ROTATION_TOLERANCE: f32 = 1e-3;
 
+/// Pinhole intrinsics in pixels at the rendered resolution.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Intrinsics {
+    pub width: u32,
+    pub height: u32,
+    pub fx: f32,
+    pub fy: f32,
+    pub cx: f32,
+    pub cy: f32,
+}
+
 /// A pinhole camera with OpenCV axes. See the module documentation for the conventions.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -49,17 +60,8 @@ impl Camera {
     /// Builds a camera and checks that it is usable: positive size and focal lengths, finite
     /// principal point and pose, and a proper rotation (re-orthonormalized afterwards so that
     /// rounding in the source file does not leak into rendering).
-    #[allow(clippy::too_many_arguments)]
-    pub fn new(
-        width: u32,
-        height: u32,
-        fx: f32,
-        fy: f32,
-        cx: f32,
-        cy: f32,
-        rotation: Mat3,
-        translation: Vec3,
-    ) -> Result<Self, CameraError> {
+    pub fn new(intrinsics: Intrinsics, rotation: Mat3, translation: Vec3) -> Result<Self, CameraError> {
+        let Intrinsics { width, height, fx, fy, cx, cy } = intrinsics;
         if width == 0 || height == 0 {
             return Err(CameraError::EmptyImage { width, height });
         }
@@ -83,16 +85,7 @@ impl Camera {
     }
 
     /// Builds a camera from a camera-to-world matrix whose axes follow OpenCV.
-    #[allow(clippy::too_many_arguments)]
-    pub fn from_camera_to_world(
-        width: u32,
-        height: u32,
-        fx: f32,
-        fy: f32,
-        cx: f32,
-        cy: f32,
-        camera_to_world: Mat4,
-    ) -> Result<Self, CameraError> {
+    pub fn from_camera_to_world(intrinsics: Intrinsics, camera_to_world: Mat4) -> Result<Self, CameraError> {
         let row = camera_to_world.row(3);
         if !row.is_finite() {
             return Err(CameraError::NonFinitePose);
@@ -103,23 +96,18 @@ impl Camera {
         let r_c2w = Mat3::from_mat4(camera_to_world);
         let center = camera_to_world.w_axis.truncate();
         let rotation = r_c2w.transpose();
-        Self::new(width, height, fx, fy, cx, cy, rotation, -(rotation * center))
+        Self::new(intrinsics, rotation, -(rotation * center))
     }
 
     /// Builds a camera from an OpenGL/Blender camera-to-world matrix (x right, y up, camera
     /// looking down -z), flipping the y and z axes into OpenCV.
-    #[allow(clippy::too_many_arguments)]
-    pub fn from_opengl_camera_to_world(
-        width: u32,
-        height: u32,
-        fx: f32,
-        fy: f32,
-        cx: f32,
-        cy: f32,
-        camera_to_world: Mat4,
-    ) -> Result<Self, CameraError> {
+    pub fn from_opengl_camera_to_world(intrinsics: Intrinsics, camera_to_world: Mat4) -> Result<Self, CameraError> {
         let flip = Mat4::from_diagonal(Vec4::new(1.0, -1.0, -1.0, 1.0));
-        Self::from_camera_to_world(width, height, fx, fy, cx, cy, camera_to_world * flip)
+        Self::from_camera_to_world(intrinsics, camera_to_world * flip)
+    }
+
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics { width: self.width, height: self.height, fx: self.fx, fy: self.fy, cx: self.cx, cy: self.cy }
     }
 
     /// Camera center in world coordinates.
@@ -156,16 +144,9 @@ impl Camera {
     pub fn resized(&self, width: u32, height: u32) -> Result<Self, CameraError> {
         let sx = width as f32 / self.width as f32;
         let sy = height as f32 / self.height as f32;
-        Self::new(
-            width,
-            height,
-            self.fx * sx,
-            self.fy * sy,
-            self.cx * sx,
-            self.cy * sy,
-            self.rotation,
-            self.translation,
-        )
+        let intrinsics =
+            Intrinsics { width, height, fx: self.fx * sx, fy: self.fy * sy, cx: self.cx * sx, cy: self.cy * sy };
+        Self::new(intrinsics, self.rotation, self.translation)
     }
 }
 
@@ -214,7 +195,12 @@ mod tests {
 
     fn test_camera() -> Camera {
         let rotation = quaternion_to_matrix([0.9, 0.1, -0.3, 0.2]).unwrap();
-        Camera::new(64, 48, 50.0, 55.0, 31.0, 25.0, rotation, Vec3::new(0.1, -0.2, 3.0)).unwrap()
+        Camera::new(
+            Intrinsics { width: 64, height: 48, fx: 50.0, fy: 55.0, cx: 31.0, cy: 25.0 },
+            rotation,
+            Vec3::new(0.1, -0.2, 3.0),
+        )
+        .unwrap()
     }
 
     #[test]
@@ -233,7 +219,11 @@ mod tests {
         let p = Vec3::new(0.3, -1.0, 2.0);
         let back = cam.camera_to_world().transform_point3(cam.world_to_camera(p));
         assert!((back - p).length() < 1e-5);
-        let again = Camera::from_camera_to_world(64, 48, 50.0, 55.0, 31.0, 25.0, cam.camera_to_world()).unwrap();
+        let again = Camera::from_camera_to_world(
+            Intrinsics { width: 64, height: 48, fx: 50.0, fy: 55.0, cx: 31.0, cy: 25.0 },
+            cam.camera_to_world(),
+        )
+        .unwrap();
         assert!((again.translation - cam.translation).length() < 1e-5);
     }
 
@@ -247,7 +237,11 @@ mod tests {
 
     #[test]
     fn opengl_camera_looks_down_minus_z() {
-        let cam = Camera::from_opengl_camera_to_world(10, 10, 5.0, 5.0, 5.0, 5.0, Mat4::IDENTITY).unwrap();
+        let cam = Camera::from_opengl_camera_to_world(
+            Intrinsics { width: 10, height: 10, fx: 5.0, fy: 5.0, cx: 5.0, cy: 5.0 },
+            Mat4::IDENTITY,
+        )
+        .unwrap();
         // In OpenGL the identity camera looks down -z with y up.
         let (u, v) = cam.project(Vec3::new(0.0, 1.0, -2.0)).unwrap();
         assert!((u - 5.0).abs() < 1e-6 && v < 5.0);
@@ -257,14 +251,24 @@ mod tests {
     #[test]
     fn rejects_bad_cameras() {
         let r = Mat3::IDENTITY;
-        assert!(matches!(Camera::new(0, 4, 1.0, 1.0, 0.0, 0.0, r, Vec3::ZERO), Err(CameraError::EmptyImage { .. })));
-        assert!(matches!(Camera::new(4, 4, f32::NAN, 1.0, 0.0, 0.0, r, Vec3::ZERO), Err(CameraError::BadFocal { .. })));
         assert!(matches!(
-            Camera::new(4, 4, 1.0, 1.0, 0.0, 0.0, r * 2.0, Vec3::ZERO),
+            Camera::new(Intrinsics { width: 0, height: 4, fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 }, r, Vec3::ZERO),
+            Err(CameraError::EmptyImage { .. })
+        ));
+        assert!(matches!(
+            Camera::new(Intrinsics { width: 4, height: 4, fx: f32::NAN, fy: 1.0, cx: 0.0, cy: 0.0 }, r, Vec3::ZERO),
+            Err(CameraError::BadFocal { .. })
+        ));
+        assert!(matches!(
+            Camera::new(Intrinsics { width: 4, height: 4, fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 }, r * 2.0, Vec3::ZERO),
             Err(CameraError::NotARotation { .. })
         ));
         assert!(matches!(
-            Camera::new(4, 4, 1.0, 1.0, 0.0, 0.0, r, Vec3::new(f32::INFINITY, 0.0, 0.0)),
+            Camera::new(
+                Intrinsics { width: 4, height: 4, fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 },
+                r,
+                Vec3::new(f32::INFINITY, 0.0, 0.0)
+            ),
             Err(CameraError::NonFinitePose)
         ));
     }

@@ -3,7 +3,7 @@
 
 use glam::{Mat3, Vec3};
 
-use crate::camera::Camera;
+use crate::camera::{Camera, Intrinsics};
 use crate::gaussians::{Gaussians, sh_coeff_count};
 
 /// splitmix64: tiny, fast, deterministic on every platform.
@@ -28,7 +28,7 @@ impl SplitMix64 {
 
 /// A camera at the origin looking down +z (OpenCV axes) with the given intrinsics.
 pub fn axis_camera(width: u32, height: u32, fx: f32, fy: f32, cx: f32, cy: f32) -> Camera {
-    Camera::new(width, height, fx, fy, cx, cy, Mat3::IDENTITY, Vec3::ZERO).expect("valid intrinsics")
+    Camera::new(Intrinsics { width, height, fx, fy, cx, cy }, Mat3::IDENTITY, Vec3::ZERO).expect("valid intrinsics")
 }
 
 /// `n` random Gaussians in the view of [`axis_camera`] (z in [2, 6], within about +/-25

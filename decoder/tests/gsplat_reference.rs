@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use glam::{Mat3, Vec3};
-use pwgs_decoder::camera::Camera;
+use pwgs_decoder::camera::{Camera, Intrinsics};
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, rasterize};
 use safetensors::SafeTensors;
@@ -44,7 +44,12 @@ fn matches_gsplat_basic_case() {
         g.push(v3(&means), v3(&scales), q, opacities[i], &coeffs[i * 48..(i + 1) * 48]);
     }
     let center = Vec3::new(0.123, 0.456, -8.0);
-    let cam = Camera::new(123, 82, 61.5, 61.5, 61.5, 41.0, Mat3::IDENTITY, -center).unwrap();
+    let cam = Camera::new(
+        Intrinsics { width: 123, height: 82, fx: 61.5, fy: 61.5, cx: 61.5, cy: 41.0 },
+        Mat3::IDENTITY,
+        -center,
+    )
+    .unwrap();
     let out = rasterize(&g, &cam, &RenderOptions::default());
     let mut worst = 0.0f32;
     let mut covered = 0;

@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use glam::{DMat4, DVec4};
-use pwgs_decoder::camera::Camera;
+use pwgs_decoder::camera::{Camera, Intrinsics};
 
 use crate::DatasetError;
 use crate::npy::read_npy;
@@ -55,12 +55,14 @@ fn pose_to_camera(row: &[f64]) -> Result<Camera, String> {
     // (down, right, back) -> OpenGL (right, up, back).
     let c2w = DMat4::from_cols(col(1), -col(0), col(2), col(3) + DVec4::W);
     Camera::from_opengl_camera_to_world(
-        w as u32,
-        h as u32,
-        f as f32,
-        f as f32,
-        (w / 2.0) as f32,
-        (h / 2.0) as f32,
+        Intrinsics {
+            width: w as u32,
+            height: h as u32,
+            fx: f as f32,
+            fy: f as f32,
+            cx: (w / 2.0) as f32,
+            cy: (h / 2.0) as f32,
+        },
         c2w.as_mat4(),
     )
     .map_err(|e| format!("camera rejected: {e}"))

@@ -35,12 +35,16 @@ impl SceneNormalization {
 mod tests {
     use super::*;
     use glam::Mat3;
+    use pwgs_decoder::camera::Intrinsics;
 
     #[test]
     fn centers_cameras_and_scales_to_extent() {
         let cams: Vec<Camera> = [Vec3::new(1.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0)]
             .iter()
-            .map(|c| Camera::new(4, 4, 2.0, 2.0, 2.0, 2.0, Mat3::IDENTITY, -*c).unwrap())
+            .map(|c| {
+                Camera::new(Intrinsics { width: 4, height: 4, fx: 2.0, fy: 2.0, cx: 2.0, cy: 2.0 }, Mat3::IDENTITY, -*c)
+                    .unwrap()
+            })
             .collect();
         let n = SceneNormalization::from_cameras(&cams);
         assert!((n.center - Vec3::new(2.0, 0.0, 0.0)).length() < 1e-6);

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pwgs_decoder::camera::Camera;
+use pwgs_decoder::camera::{Camera, Intrinsics};
 use pwgs_decoder::ply::PointCloud;
 use pwgs_decoder::rgb_image::RgbImage;
 use rayon::prelude::*;
@@ -190,7 +190,7 @@ fn colmap_scene(model_dir: &Path, image_folder: &Path) -> Result<ParsedScene, Da
             let (Ok(w), Ok(h)) = (w, h) else {
                 return Err(DatasetError::malformed(model_dir, format!("camera {} has an absurd size", cam.id)));
             };
-            let camera = Camera::new(w, h, fx, fy, cx, cy, rotation, translation)
+            let camera = Camera::new(Intrinsics { width: w, height: h, fx, fy, cx, cy }, rotation, translation)
                 .map_err(|source| DatasetError::Camera { path: model_dir.join(&im.name), source })?;
             Ok(ViewSpec { name: im.name.clone(), image_path, camera, distortion })
         })

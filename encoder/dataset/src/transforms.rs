@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::DMat4;
-use pwgs_decoder::camera::Camera;
+use pwgs_decoder::camera::{Camera, Intrinsics};
 use pwgs_decoder::ply::{PlyError, PointCloud};
 use serde::Deserialize;
 
@@ -147,12 +147,14 @@ fn frame_view(
     let m = frame.transform_matrix;
     let c2w = DMat4::from_cols_array_2d(&m).transpose().as_mat4();
     let camera = Camera::from_opengl_camera_to_world(
-        w.round() as u32,
-        h.round() as u32,
-        fx as f32,
-        fy as f32,
-        cx as f32,
-        cy as f32,
+        Intrinsics {
+            width: w.round() as u32,
+            height: h.round() as u32,
+            fx: fx as f32,
+            fy: fy as f32,
+            cx: cx as f32,
+            cy: cy as f32,
+        },
         c2w,
     )
     .map_err(|e| context(format!("camera rejected: {e}")))?;

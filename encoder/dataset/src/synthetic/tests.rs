@@ -1,7 +1,7 @@
 use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3};
-use pwgs_decoder::camera::Camera;
+use pwgs_decoder::camera::{Camera, Intrinsics};
 use pwgs_decoder::ply::point_cloud_from_bytes;
 
 use super::scene::{OBJECTS, Shape, intersect};
@@ -62,12 +62,14 @@ fn transforms_poses_are_the_cameras_in_opengl_convention() {
             .collect();
         let c2w = Mat4::from_cols_slice(&rows).transpose();
         let camera = Camera::from_opengl_camera_to_world(
-            64,
-            48,
-            number("fl_x"),
-            number("fl_y"),
-            number("cx"),
-            number("cy"),
+            Intrinsics {
+                width: 64,
+                height: 48,
+                fx: number("fl_x"),
+                fy: number("fl_y"),
+                cx: number("cx"),
+                cy: number("cy"),
+            },
             c2w,
         )
         .unwrap();
