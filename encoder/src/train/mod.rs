@@ -243,10 +243,9 @@ impl Trainer {
             .unwrap_or_else(|| vec![0.0; n]);
 
         let lr = self.config.learning_rates(it, self.extent);
-        let previous = (self.params.clone(), self.moments.clone());
         let updated = self.moments.step(self.params.clone(), g, &lr, it + 1);
         if let Some(bad) = non_finite_parameter(&updated, loss_value) {
-            self.params = previous.0;
+            // `self.params` still holds the state before this step.
             self.moments = Moments::zeros_like(&self.params);
             self.failed_steps += 1;
             self.iteration += 1;
