@@ -106,6 +106,42 @@ impl Camera {
         Self::from_camera_to_world(intrinsics, camera_to_world * flip)
     }
 
+    /// A camera at `eye` looking at `target`, with `up` pointing up in the image (OpenCV's y
+    /// axis points down, so it is the opposite of `up` made orthogonal to the view direction).
+    pub fn look_at(intrinsics: Intrinsics, eye: Vec3, target: Vec3, up: Vec3) -> Result<Self, CameraError> {
+        let z = (target - eye).normalize_or_zero();
+        let x = (-up).cross(z).normalize_or_zero();
+        if z == Vec3::ZERO || x == Vec3::ZERO {
+            return Err(CameraError::NonFinitePose);
+        }
+        let y = z.cross(x);
+        let rotation = Mat3::from_cols(x, y, z).transpose();
+        Self::new(intrinsics, rotation, -(rotation * eye))
+    }
+
+    /// `count` cameras evenly spaced on a circle of `radius` around `center`, raised by
+    /// `elevation` radians above the plane orthogonal to `up`, all looking at `center`.
+    pub fn orbit(
+        intrinsics: Intrinsics,
+        center: Vec3,
+        up: Vec3,
+        radius: f32,
+        elevation: f32,
+        count: usize,
+    ) -> Result<Vec<Self>, CameraError> {
+        let up = up.normalize_or_zero();
+        let side = up.any_orthonormal_vector();
+        let forward = up.cross(side);
+        (0..count)
+            .map(|i| {
+                let azimuth = i as f32 / count as f32 * std::f32::consts::TAU;
+                let horizontal = side * azimuth.cos() + forward * azimuth.sin();
+                let eye = center + radius * (horizontal * elevation.cos() + up * elevation.sin());
+                Self::look_at(intrinsics, eye, center, up)
+            })
+            .collect()
+    }
+
     pub fn intrinsics(&self) -> Intrinsics {
         Intrinsics { width: self.width, height: self.height, fx: self.fx, fy: self.fy, cx: self.cx, cy: self.cy }
     }
@@ -233,6 +269,23 @@ mod tests {
         let d = cam.ray_direction(10.5, 40.5);
         let (u, v) = cam.project(cam.center() + 2.5 * d).unwrap();
         assert!((u - 10.5).abs() < 1e-3 && (v - 40.5).abs() < 1e-3, "({u}, {v})");
+    }
+
+    #[test]
+    fn orbit_cameras_look_at_the_center_with_up_at_the_top() {
+        let intrinsics = Intrinsics { width: 40, height: 30, fx: 30.0, fy: 30.0, cx: 20.0, cy: 15.0 };
+        let center = Vec3::new(1.0, 2.0, 3.0);
+        let up = Vec3::new(0.0, 0.0, 1.0);
+        let cams = Camera::orbit(intrinsics, center, up, 4.0, 0.3, 6).unwrap();
+        for cam in &cams {
+            assert!(((cam.center() - center).length() - 4.0).abs() < 1e-4);
+            let (u, v) = cam.project(center).unwrap();
+            assert!((u - 20.0).abs() < 1e-3 && (v - 15.0).abs() < 1e-3, "center at ({u}, {v})");
+            let (_, v_up) = cam.project(center + up * 0.5).unwrap();
+            assert!(v_up < 15.0, "up should be toward the top of the image");
+        }
+        assert!(Camera::look_at(intrinsics, center, center, up).is_err());
+        assert!(Camera::look_at(intrinsics, center, center + up, up).is_err(), "view along up has no roll");
     }
 
     #[test]

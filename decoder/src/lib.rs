@@ -6,6 +6,6 @@ pub mod camera;
 pub mod gaussians;
 pub mod ply;
 pub mod random_scene;
-pub mod stream;
 pub mod raster;
 pub mod rgb_image;
+pub mod stream;

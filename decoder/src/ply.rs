@@ -397,16 +397,26 @@ fn inria_property_names(degree: u32) -> Vec<String> {
     names
 }
 
+fn inria_header(count: usize, names: &[String]) -> String {
+    let mut out = format!("ply\nformat binary_little_endian 1.0\nelement vertex {count}\n");
+    for name in names {
+        out.push_str(&format!("property float {name}\n"));
+    }
+    out.push_str("end_header\n");
+    out
+}
+
+/// Size in bytes of [`gaussians_to_bytes`]'s output, without encoding anything.
+pub fn inria_ply_size(g: &Gaussians) -> usize {
+    let names = inria_property_names(g.sh_degree);
+    inria_header(g.len(), &names).len() + g.len() * names.len() * 4
+}
+
 /// Encodes Gaussians as a binary little-endian PLY in the INRIA layout (zero normals).
 pub fn gaussians_to_bytes(g: &Gaussians) -> Vec<u8> {
     assert!(g.is_consistent(), "Gaussian arrays have inconsistent lengths");
     let names = inria_property_names(g.sh_degree);
-    let mut out = format!("ply\nformat binary_little_endian 1.0\nelement vertex {}\n", g.len());
-    for name in &names {
-        out.push_str(&format!("property float {name}\n"));
-    }
-    out.push_str("end_header\n");
-    let mut bytes = out.into_bytes();
+    let mut bytes = inria_header(g.len(), &names).into_bytes();
     let coeffs = g.coeffs_per_channel();
     bytes.reserve(g.len() * names.len() * 4);
     for i in 0..g.len() {
@@ -499,7 +509,9 @@ mod tests {
     fn round_trip_is_lossless_for_every_degree() {
         for degree in 0..=MAX_SH_DEGREE {
             let g = sample(degree, 17);
-            let back = gaussians_from_bytes(&gaussians_to_bytes(&g)).unwrap();
+            let bytes = gaussians_to_bytes(&g);
+            assert_eq!(bytes.len(), inria_ply_size(&g));
+            let back = gaussians_from_bytes(&bytes).unwrap();
             assert_eq!(back.gaussians, g, "degree {degree}");
             assert_eq!(back.dropped_non_finite, 0);
         }

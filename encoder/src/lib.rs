@@ -3,8 +3,10 @@
 //! crate beside it, rendering and everything normative in `pwgs-decoder`.
 
 pub mod backward;
+pub mod compress;
 pub mod evaluate;
 pub mod exit;
+pub mod fidelity;
 pub mod init;
 pub mod metrics;
 pub mod splat_op;

@@ -7,12 +7,19 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::tensor::Device;
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
+use pwgs_bitstream::Container;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::stream::attribute_hash;
+use pwgs_encoder::compress::{Compressed, DEFAULT_QUALITY, MAX_QUALITY, QuantizerSettings, StreamContext, compress};
 use pwgs_encoder::evaluate::{MeanScore, ViewScore, evaluate};
+use pwgs_encoder::fidelity::{orbit_cameras, renders};
 use pwgs_encoder::init::initial_gaussians;
+use pwgs_encoder::metrics::psnr::psnr;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 use pwgs_encoder::train::{TrainConfig, TrainSummary, Trainer, train};
 use serde::Serialize;
@@ -21,7 +28,7 @@ use serde::Serialize;
 #[command(
     name = "pwenc",
     version,
-    about = "pwgs encoder: trains a 3D Gaussian Splatting scene (perceptual wrapper and bitstream to come)",
+    about = "pwgs encoder: trains a 3D Gaussian Splatting scene and writes it as a pwgs stream",
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true
 )]
@@ -79,8 +86,31 @@ enum Base {
 #[derive(Args)]
 struct EncodeArgs {
     /// Scene folder (COLMAP, transforms.json or LLFF).
-    #[arg(required = true)]
+    #[arg(required_unless_present = "from_ply")]
     scene: Option<PathBuf>,
+    /// Compress a 3DGS model trained elsewhere (INRIA PLY) instead of training one.
+    #[arg(long, conflicts_with_all = ["scene", "init_ply", "eval"])]
+    from_ply: Option<PathBuf>,
+    /// Write the stream here.
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Size/quality knob of the stream, 0 (smallest) to 10 (most faithful); each step scales
+    /// every quantization step by 1/sqrt(2).
+    #[arg(long, default_value_t = DEFAULT_QUALITY, value_parser = clap::value_parser!(u8).range(0..=MAX_QUALITY as i64))]
+    quality: u8,
+    /// With --from-ply: render this many views on an orbit around the model, from the input and
+    /// from the decoded stream, and report the PSNR between them.
+    #[arg(long, requires = "from_ply")]
+    orbit: Option<usize>,
+    /// Up direction of the orbit (`x,y,z`; captures in COLMAP conventions usually have -y up).
+    #[arg(long, default_value = "0,-1,0", value_parser = parse_vector)]
+    up: [f32; 3],
+    /// Width and height of the orbit views.
+    #[arg(long, default_value_t = 512)]
+    orbit_size: u32,
+    /// Save the orbit renders (input and decoded) as PNGs in this folder.
+    #[arg(long, requires = "orbit")]
+    orbit_renders: Option<PathBuf>,
     /// Base representation.
     #[arg(long, value_enum, default_value = "3dgs")]
     base: Base,
@@ -127,6 +157,15 @@ impl LoadArgs {
     }
 }
 
+fn parse_vector(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<f32> =
+        s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+    match parts.as_slice() {
+        [x, y, z] if parts.iter().all(|v| v.is_finite()) && parts.iter().any(|v| *v != 0.0) => Ok([*x, *y, *z]),
+        _ => Err(format!("`{s}` is not a nonzero vector x,y,z")),
+    }
+}
+
 fn parse_color(s: &str) -> Result<[f32; 3], String> {
     match s {
         "white" => return Ok([1.0; 3]),
@@ -141,6 +180,22 @@ fn parse_color(s: &str) -> Result<[f32; 3], String> {
     }
 }
 
+/// What `-o` wrote.
+#[derive(Serialize)]
+struct StreamSummary {
+    path: String,
+    bytes: usize,
+    quality: u8,
+    gaussians: u32,
+    dropped_invisible: usize,
+    sh_degree_in: u32,
+    sh_degree: u32,
+    /// Bytes of each section, container overhead (tag, length, CRC) included.
+    sections: Vec<(String, usize)>,
+    attribute_sha256: String,
+    seconds: f64,
+}
+
 #[derive(Serialize)]
 struct Report<'a> {
     scene: String,
@@ -151,16 +206,144 @@ struct Report<'a> {
     test_views: usize,
     load_seconds: f64,
     training: TrainSummary,
-    /// Size of the model as an uncompressed INRIA PLY.
+    /// Size of the trained model as an uncompressed INRIA PLY.
     ply_bytes: usize,
+    stream: Option<StreamSummary>,
+    /// Scores of the decoded stream when one was written, else of the trained model.
     mean: Option<MeanScore>,
     views: Vec<ViewScore>,
 }
 
-fn encode(args: EncodeArgs) -> Result<()> {
-    let scene = args.scene.expect("clap requires the scene");
+#[derive(Serialize)]
+struct ImportReport {
+    input: String,
+    ply_bytes: u64,
+    stream: StreamSummary,
+    compression_ratio: f64,
+    orbit_views: usize,
+    orbit_size: u32,
+    orbit_psnr: Vec<f64>,
+    orbit_psnr_mean: Option<f64>,
+    orbit_psnr_min: Option<f64>,
+}
+
+/// Compresses `g` into a stream at `path` and decodes it back through the decoder library.
+fn write_stream(
+    g: &Gaussians,
+    context: &StreamContext,
+    quality: u8,
+    path: &Path,
+) -> Result<(Compressed, StreamSummary)> {
     let start = Instant::now();
-    let data = args.load.load(&scene)?;
+    let compressed = compress(g, &QuantizerSettings::for_quality(quality), context)?;
+    pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let container = Container::parse(&compressed.bytes).expect("the encoder's own stream parses");
+    let sections = container
+        .sections
+        .iter()
+        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + 12))
+        .collect();
+    let header = &compressed.decoded.header;
+    let summary = StreamSummary {
+        path: path.display().to_string(),
+        bytes: compressed.bytes.len(),
+        quality,
+        gaussians: header.gaussian_count,
+        dropped_invisible: compressed.invisible,
+        sh_degree_in: compressed.sh_degree_in,
+        sh_degree: header.sh_degree,
+        sections,
+        attribute_sha256: attribute_hash(&compressed.decoded.gaussians),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    println!(
+        "wrote {} ({} bytes, {} Gaussians, SH degree {}, {} invisible dropped) in {:.2} s",
+        path.display(),
+        summary.bytes,
+        summary.gaussians,
+        summary.sh_degree,
+        summary.dropped_invisible,
+        summary.seconds
+    );
+    Ok((compressed, summary))
+}
+
+fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
+    pwgs_decoder::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(report)?)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+fn read_ply(path: &Path) -> Result<Gaussians> {
+    let loaded = pwgs_decoder::ply::read_gaussians(path)?;
+    if loaded.dropped_non_finite + loaded.clamped_opacities > 0 {
+        eprintln!(
+            "{}: dropped {} Gaussians with non-finite values, clamped {} infinite opacities",
+            path.display(),
+            loaded.dropped_non_finite,
+            loaded.clamped_opacities
+        );
+    }
+    Ok(loaded.gaussians)
+}
+
+/// `pwenc --from-ply`: compress a model trained elsewhere, optionally checking the decoded
+/// stream's renders against the model's own on an orbit.
+fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
+    let output = args.output.as_deref().context("--from-ply needs -o/--output for the stream")?;
+    let gaussians = read_ply(ply)?;
+    let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
+    let context = StreamContext::from_gaussians(&gaussians, args.load.background);
+    let (compressed, stream) = write_stream(&gaussians, &context, args.quality, output)?;
+    let ratio = ply_bytes as f64 / stream.bytes as f64;
+    println!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), output.display(), stream.bytes);
+    let mut orbit_psnr = Vec::new();
+    if let Some(count) = args.orbit {
+        let cameras = orbit_cameras(&context, Vec3::from(args.up), count, args.orbit_size)?;
+        let options = RenderOptions { background: args.load.background, ..Default::default() };
+        let reference = renders(&gaussians, &cameras, &options);
+        let decoded = renders(&compressed.decoded.gaussians, &cameras, &options);
+        orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
+        if let Some(dir) = &args.orbit_renders {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+            for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {
+                input.save_png(&dir.join(format!("orbit_{i:03}_input.png")))?;
+                decoded.save_png(&dir.join(format!("orbit_{i:03}_decoded.png")))?;
+            }
+        }
+        for (i, p) in orbit_psnr.iter().enumerate() {
+            println!("orbit view {i:>3}: PSNR {p:.2} dB against the input model");
+        }
+    }
+    let mean = (!orbit_psnr.is_empty()).then(|| orbit_psnr.iter().sum::<f64>() / orbit_psnr.len() as f64);
+    let min = orbit_psnr.iter().copied().reduce(f64::min);
+    if let (Some(mean), Some(min)) = (mean, min) {
+        println!("orbit: mean PSNR {mean:.2} dB, lowest {min:.2} dB over {} views", orbit_psnr.len());
+    }
+    if let Some(path) = &args.report {
+        let report = ImportReport {
+            input: ply.display().to_string(),
+            ply_bytes,
+            stream,
+            compression_ratio: ratio,
+            orbit_views: orbit_psnr.len(),
+            orbit_size: args.orbit_size,
+            orbit_psnr,
+            orbit_psnr_mean: mean,
+            orbit_psnr_min: min,
+        };
+        write_report(path, &report)?;
+    }
+    Ok(())
+}
+
+fn encode(args: EncodeArgs) -> Result<()> {
+    if let Some(ply) = &args.from_ply {
+        return compress_ply(ply, &args);
+    }
+    let scene = args.scene.as_deref().expect("clap requires the scene");
+    let start = Instant::now();
+    let data = args.load.load(scene)?;
     let load_seconds = start.elapsed().as_secs_f64();
     let first = &data.train[0].image;
     println!(
@@ -173,21 +356,11 @@ fn encode(args: EncodeArgs) -> Result<()> {
         first.height
     );
     let initial = match &args.init_ply {
-        Some(path) => {
-            let loaded = pwgs_decoder::ply::read_gaussians(path)?;
-            if loaded.dropped_non_finite + loaded.clamped_opacities > 0 {
-                eprintln!(
-                    "{}: dropped {} Gaussians with non-finite values, clamped {} infinite opacities",
-                    path.display(),
-                    loaded.dropped_non_finite,
-                    loaded.clamped_opacities
-                );
-            }
-            loaded.gaussians
-        }
+        Some(path) => read_ply(path)?,
         None => initial_gaussians(&data, args.seed)?,
     };
     let mut config = TrainConfig::for_iterations(args.iters);
+    config.initial_sh_degree = initial.sh_degree;
     config.background = args.load.background;
     config.seed = args.seed;
     config.densify.max_gaussians = args.max_gaussians;
@@ -224,10 +397,21 @@ fn encode(args: EncodeArgs) -> Result<()> {
         "trained {} iterations in {:.1} s: {} Gaussians",
         training.iterations, training.seconds, training.gaussians
     );
+    let stream = match &args.output {
+        Some(path) => {
+            let n = data.normalization;
+            let context =
+                StreamContext { center: n.center.to_array(), scale: n.scale, background: args.load.background };
+            Some(write_stream(&gaussians, &context, args.quality, path)?)
+        }
+        None => None,
+    };
+    // What is evaluated is what a decoder shows: the decoded stream when there is one.
+    let shown = stream.as_ref().map_or(&gaussians, |(c, _)| &c.decoded.gaussians);
     let (views, mean) = match &args.eval {
         Some(dir) => {
             let options = RenderOptions { background: args.load.background, ..Default::default() };
-            let views = evaluate(&gaussians, &data, &options, Some(dir))?;
+            let views = evaluate(shown, &data, &options, Some(dir))?;
             for v in &views {
                 println!("{:<24} PSNR {:6.2} dB  SSIM {:.4}  render {:.3} s", v.name, v.psnr, v.ssim, v.render_seconds);
             }
@@ -247,12 +431,12 @@ fn encode(args: EncodeArgs) -> Result<()> {
             test_views: data.test.len(),
             load_seconds,
             training,
-            ply_bytes: pwgs_decoder::ply::gaussians_to_bytes(&gaussians).len(),
+            ply_bytes: pwgs_decoder::ply::inria_ply_size(&gaussians),
+            stream: stream.map(|(_, summary)| summary),
             mean,
             views,
         };
-        pwgs_decoder::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(&report)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        write_report(path, &report)?;
     }
     Ok(())
 }

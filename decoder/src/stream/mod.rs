@@ -2,4 +2,94 @@
 //! Gaussians. The container syntax itself lives in `pwgs-bitstream`.
 
 pub mod entropy;
+pub mod header;
 pub mod octree;
+pub mod plain;
+
+use pwgs_bitstream::{Container, FieldError, StreamError, Tag, write_container};
+use sha2::{Digest, Sha256};
+
+use crate::gaussians::Gaussians;
+use header::{BaseKind, Header};
+use plain::PlainGaussians;
+
+/// Why a stream could not be decoded.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum DecodeError {
+    #[error(transparent)]
+    Container(#[from] StreamError),
+    #[error(transparent)]
+    Field(#[from] FieldError),
+    #[error("the stream has no {0} section")]
+    MissingSection(Tag),
+    #[error("the stream needs section {0}, which this decoder does not know (written by a newer encoder?)")]
+    UnknownCriticalSection(Tag),
+    #[error("section {tag}: {problem}")]
+    Invalid { tag: Tag, problem: String },
+}
+
+impl DecodeError {
+    fn invalid(tag: Tag, problem: impl Into<String>) -> Self {
+        Self::Invalid { tag, problem: problem.into() }
+    }
+
+    fn coded(tag: Tag, error: impl std::fmt::Display) -> Self {
+        Self::invalid(tag, format!("coded data: {error}"))
+    }
+}
+
+/// Sections a plain-3DGS stream may hold.
+const PLAIN_SECTIONS: [Tag; 7] =
+    [Tag::HEAD, plain::POSITIONS, plain::SCALES, plain::ROTATIONS, plain::OPACITIES, plain::COLORS, plain::SH_REST];
+
+/// Writes a complete stream. The header's count and SH degree must match the content.
+pub fn encode(header: &Header, content: &PlainGaussians) -> Result<Vec<u8>, octree::OctreeError> {
+    assert_eq!(header.gaussian_count as usize, content.len(), "header count does not match the content");
+    assert_eq!(header.sh_degree, content.sh_degree, "header SH degree does not match the content");
+    let mut sections = vec![(Tag::HEAD, header.write())];
+    sections.extend(content.write_sections()?);
+    Ok(write_container(&sections))
+}
+
+/// A decoded stream.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decoded {
+    pub header: Header,
+    pub content: PlainGaussians,
+    pub gaussians: Gaussians,
+}
+
+/// Parses, verifies and decodes a stream.
+pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
+    let (container, header) = parse(bytes)?;
+    for section in &container.sections {
+        if section.tag.is_critical() && !PLAIN_SECTIONS.contains(&section.tag) {
+            return Err(DecodeError::UnknownCriticalSection(section.tag));
+        }
+    }
+    let BaseKind::Plain3dgs = header.base;
+    let content = PlainGaussians::read_sections(&container, header.gaussian_count as usize, header.sh_degree)?;
+    let gaussians = content.dequantize();
+    Ok(Decoded { header, content, gaussians })
+}
+
+/// The container and header of a stream, every CRC verified, without decoding the content.
+pub fn parse(bytes: &[u8]) -> Result<(Container<'_>, Header), DecodeError> {
+    let container = Container::parse(bytes)?;
+    let head = container.section(Tag::HEAD).ok_or(DecodeError::MissingSection(Tag::HEAD))?;
+    let header = Header::read(head.payload, container.minor)?;
+    Ok((container, header))
+}
+
+/// SHA-256 of decoded Gaussians in a canonical byte layout (count, SH degree, then every array
+/// as little-endian binary32): equal hashes mean bit-identical attributes.
+pub fn attribute_hash(g: &Gaussians) -> String {
+    let mut h = Sha256::new();
+    h.update((g.len() as u64).to_le_bytes());
+    h.update(g.sh_degree.to_le_bytes());
+    let floats = g.means.iter().flatten().chain(g.log_scales.iter().flatten()).chain(g.rotations.iter().flatten());
+    for v in floats.chain(&g.opacity_logits).chain(&g.sh) {
+        h.update(v.to_le_bytes());
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}

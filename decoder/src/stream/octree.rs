@@ -139,15 +139,22 @@ pub fn decode(bytes: &[u8], depth: u8, count: usize) -> Result<Vec<[u32; 3]>, Oc
             let mut occupied = [false; 8];
             let mut ones = 0;
             for child in 0..8 {
-                occupied[child] =
-                    if child == 7 && ones == 0 { true } else { coder.bit(contexts.occupancy(level, child, ones, class))? };
+                occupied[child] = if child == 7 && ones == 0 {
+                    true
+                } else {
+                    coder.bit(contexts.occupancy(level, child, ones, class))?
+                };
                 ones += u32::from(occupied[child]);
             }
             if next.len() + ones as usize > count {
                 return Err(OctreeError::TooManyPoints { expected: count });
             }
             for child in (0..8).filter(|&c| occupied[c]) {
-                let q = [p[0] << 1 | (child as u32 >> 2), p[1] << 1 | (child as u32 >> 1 & 1), p[2] << 1 | (child as u32 & 1)];
+                let q = [
+                    p[0] << 1 | (child as u32 >> 2),
+                    p[1] << 1 | (child as u32 >> 1 & 1),
+                    p[2] << 1 | (child as u32 & 1),
+                ];
                 next.push((q, parent_class(ones)));
             }
         }

@@ -33,6 +33,8 @@ pub struct TrainConfig {
     /// Highest SH degree; one more band is enabled every `sh_interval` iterations.
     pub sh_degree: u32,
     pub sh_interval: u32,
+    /// Degree active from the start: a model resumed from a PLY keeps the bands it has.
+    pub initial_sh_degree: u32,
     /// Position learning rate at the start and the end (times the scene extent), decayed
     /// log-linearly.
     pub lr_position: [f32; 2],
@@ -61,6 +63,7 @@ impl TrainConfig {
             iterations,
             sh_degree: MAX_SH_DEGREE,
             sh_interval: (iterations / 6).clamp(1, 1000),
+            initial_sh_degree: 0,
             lr_position: [1.6e-4, 1.6e-6],
             lr_log_scales: 5e-3,
             lr_rotations: 1e-3,
@@ -94,7 +97,7 @@ impl TrainConfig {
 
     /// Active SH degree at an iteration.
     pub fn active_degree(&self, iteration: u32) -> u32 {
-        (iteration / self.sh_interval.max(1)).min(self.sh_degree)
+        (iteration / self.sh_interval.max(1)).max(self.initial_sh_degree).min(self.sh_degree)
     }
 }
 

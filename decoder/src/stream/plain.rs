@@ -1,0 +1,284 @@
+//! The plain-3DGS content of a stream (SPEC.md section 6): positions on an octree-coded grid
+//! and every other attribute uniformly quantized with a step chosen by the encoder, each
+//! channel entropy-coded with its own frequency table.
+
+use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
+
+use super::DecodeError;
+use super::entropy::{EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
+use super::octree::{self, MAX_DEPTH, OctreeError};
+use crate::gaussians::{Gaussians, sh_coeff_count};
+
+pub const POSITIONS: Tag = Tag(*b"POSN");
+pub const SCALES: Tag = Tag(*b"SCAL");
+pub const ROTATIONS: Tag = Tag(*b"ROTN");
+pub const OPACITIES: Tag = Tag(*b"OPAC");
+pub const COLORS: Tag = Tag(*b"COLR");
+pub const SH_REST: Tag = Tag(*b"SHRS");
+
+/// The grid positions live on: `origin + q * cell` per axis, `q < 2^depth`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionGrid {
+    pub origin: [f32; 3],
+    pub cell: f32,
+    pub depth: u8,
+}
+
+impl PositionGrid {
+    /// Normative reconstruction: computed in binary64 (exact product, one rounding of the sum)
+    /// and rounded once to binary32.
+    pub fn position(&self, q: [u32; 3]) -> [f32; 3] {
+        std::array::from_fn(|a| (f64::from(self.origin[a]) + f64::from(q[a]) * f64::from(self.cell)) as f32)
+    }
+}
+
+/// A rotation coded as its "smallest three": the unit quaternion (w, x, y, z) with its largest
+/// component made positive; `largest` is that component's index, `rest` the other three in
+/// index order, quantized.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QuantizedRotation {
+    pub largest: u8,
+    pub rest: [i32; 3],
+}
+
+impl QuantizedRotation {
+    /// Normative reconstruction: the three components `q * step`, the largest
+    /// `sqrt(max(0, 1 - (a*a + b*b + c*c)))`, all in binary32 in this order.
+    pub fn quaternion(&self, step: f32) -> [f32; 4] {
+        let rest = self.rest.map(|q| q as f32 * step);
+        let sum = rest[0] * rest[0] + rest[1] * rest[1] + rest[2] * rest[2];
+        let largest = (1.0 - sum).max(0.0).sqrt();
+        let mut out = [0.0; 4];
+        let mut others = rest.into_iter();
+        for (i, c) in out.iter_mut().enumerate() {
+            *c = if i == self.largest as usize { largest } else { others.next().expect("three others") };
+        }
+        out
+    }
+}
+
+/// Quantized plain 3D Gaussians: exactly what a plain-3DGS stream stores.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlainGaussians {
+    pub grid: PositionGrid,
+    pub positions: Vec<[u32; 3]>,
+    pub scale_step: f32,
+    pub log_scales: Vec<[i32; 3]>,
+    pub rotation_step: f32,
+    pub rotations: Vec<QuantizedRotation>,
+    pub opacity_step: f32,
+    pub opacity_logits: Vec<i32>,
+    pub sh_degree: u32,
+    pub dc_step: f32,
+    pub sh_dc: Vec<[i32; 3]>,
+    /// Step of each SH band 1..=degree.
+    pub band_steps: Vec<f32>,
+    /// Per Gaussian, `(sh_coeff_count(degree) - 1) * 3` values, [coefficient][rgb].
+    pub sh_rest: Vec<i32>,
+}
+
+/// SH band of coefficient index `k` (0 is the DC term).
+fn band_of(k: usize) -> usize {
+    (1..=3).find(|&l| k < (l + 1) * (l + 1)).unwrap_or(0)
+}
+
+impl PlainGaussians {
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    fn rest_per_gaussian(&self) -> usize {
+        (sh_coeff_count(self.sh_degree) - 1) * 3
+    }
+
+    /// The Gaussians this content decodes to (normative reconstruction, SPEC.md section 6).
+    pub fn dequantize(&self) -> Gaussians {
+        let n = self.len();
+        let rest = self.rest_per_gaussian();
+        let mut sh = Vec::with_capacity(n * (rest + 3));
+        for i in 0..n {
+            sh.extend(self.sh_dc[i].map(|q| q as f32 * self.dc_step));
+            for (j, &q) in self.sh_rest[i * rest..(i + 1) * rest].iter().enumerate() {
+                sh.push(q as f32 * self.band_steps[band_of(1 + j / 3) - 1]);
+            }
+        }
+        Gaussians {
+            means: self.positions.iter().map(|&q| self.grid.position(q)).collect(),
+            log_scales: self.log_scales.iter().map(|q| q.map(|v| v as f32 * self.scale_step)).collect(),
+            rotations: self.rotations.iter().map(|r| r.quaternion(self.rotation_step)).collect(),
+            opacity_logits: self.opacity_logits.iter().map(|&q| q as f32 * self.opacity_step).collect(),
+            sh_degree: self.sh_degree,
+            sh,
+        }
+    }
+
+    /// The sections of this content, attributes in the order the octree lists positions.
+    pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
+        let (coded, order) = octree::encode(&self.positions, self.grid.depth)?;
+        let mut w = FieldWriter::new();
+        self.grid.origin.iter().for_each(|&c| w.f32(c));
+        w.f32(self.grid.cell);
+        w.u8(self.grid.depth);
+        w.extend(&coded);
+        let mut sections = vec![(POSITIONS, w.into_bytes())];
+
+        let block = |steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
+            let mut w = FieldWriter::new();
+            steps.iter().for_each(|&s| w.f32(s));
+            write_block(&mut w, &order, channels, value);
+            w.into_bytes()
+        };
+        sections.push((SCALES, block(&[self.scale_step], 3, &|i, c| self.log_scales[i][c])));
+        sections.push((
+            ROTATIONS,
+            block(&[self.rotation_step], 4, &|i, c| {
+                let r = &self.rotations[i];
+                if c == 0 { i32::from(r.largest) } else { r.rest[c - 1] }
+            }),
+        ));
+        sections.push((OPACITIES, block(&[self.opacity_step], 1, &|i, _| self.opacity_logits[i])));
+        sections.push((COLORS, block(&[self.dc_step], 3, &|i, c| self.sh_dc[i][c])));
+        let rest = self.rest_per_gaussian();
+        if rest > 0 {
+            sections.push((SH_REST, block(&self.band_steps, rest, &|i, c| self.sh_rest[i * rest + c])));
+        }
+        Ok(sections)
+    }
+
+    /// Reads and decodes the content sections (each on its own thread; the result does not
+    /// depend on the thread count).
+    pub(super) fn read_sections(container: &Container, count: usize, sh_degree: u32) -> Result<Self, DecodeError> {
+        let payload = |tag: Tag| container.section(tag).map(|s| s.payload).ok_or(DecodeError::MissingSection(tag));
+        let rest = (sh_coeff_count(sh_degree) - 1) * 3;
+        let (positions, (scales, (rotations, (opacities, (colors, sh_rest))))) = rayon::join(
+            || read_positions(payload(POSITIONS)?, count),
+            || {
+                rayon::join(
+                    || read_block(SCALES, payload(SCALES)?, 1, 3, count),
+                    || {
+                        rayon::join(
+                            || read_block(ROTATIONS, payload(ROTATIONS)?, 1, 4, count),
+                            || {
+                                rayon::join(
+                                    || read_block(OPACITIES, payload(OPACITIES)?, 1, 1, count),
+                                    || {
+                                        rayon::join(
+                                            || read_block(COLORS, payload(COLORS)?, 1, 3, count),
+                                            || match rest {
+                                                0 => Ok((vec![], vec![])),
+                                                _ => read_block(
+                                                    SH_REST,
+                                                    payload(SH_REST)?,
+                                                    sh_degree as usize,
+                                                    rest,
+                                                    count,
+                                                ),
+                                            },
+                                        )
+                                    },
+                                )
+                            },
+                        )
+                    },
+                )
+            },
+        );
+        let (grid, positions) = positions?;
+        let (scale_steps, scales) = scales?;
+        let (rotation_steps, rotation_values) = rotations?;
+        let (opacity_steps, opacity_logits) = opacities?;
+        let (dc_steps, colors) = colors?;
+        let (band_steps, sh_rest) = sh_rest?;
+        let mut rotations = Vec::with_capacity(count);
+        for r in rotation_values.chunks_exact(4) {
+            if !(0..4).contains(&r[0]) {
+                return Err(DecodeError::invalid(ROTATIONS, format!("largest-component index {} is not 0..=3", r[0])));
+            }
+            rotations.push(QuantizedRotation { largest: r[0] as u8, rest: [r[1], r[2], r[3]] });
+        }
+        let triples = |v: Vec<i32>| v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect::<Vec<_>>();
+        Ok(Self {
+            grid,
+            positions,
+            scale_step: scale_steps[0],
+            log_scales: triples(scales),
+            rotation_step: rotation_steps[0],
+            rotations,
+            opacity_step: opacity_steps[0],
+            opacity_logits,
+            sh_degree,
+            dc_step: dc_steps[0],
+            sh_dc: triples(colors),
+            band_steps,
+            sh_rest,
+        })
+    }
+}
+
+fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u32; 3]>), DecodeError> {
+    let mut r = FieldReader::new("POSN", payload);
+    let origin = [r.f32("origin x")?, r.f32("origin y")?, r.f32("origin z")?];
+    let cell = r.f32("cell")?;
+    if !(cell > 0.0) {
+        return Err(r.error("cell", format!("{cell} is not positive")).into());
+    }
+    let depth = r.u8("depth")?;
+    if !(1..=MAX_DEPTH).contains(&depth) {
+        return Err(r.error("depth", format!("{depth} is outside 1..={MAX_DEPTH}")).into());
+    }
+    let positions = octree::decode(r.rest(), depth, count).map_err(|e| DecodeError::coded(POSITIONS, e))?;
+    Ok((PositionGrid { origin, cell, depth }, positions))
+}
+
+/// Block syntax: one frequency table per channel, then the range-coded values, Gaussian by
+/// Gaussian (in `order`), channel by channel.
+fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dyn Fn(usize, usize) -> i32) {
+    let tables: Vec<FrequencyTable> =
+        (0..channels).map(|c| FrequencyTable::fit(&order.iter().map(|&i| value(i, c)).collect::<Vec<_>>())).collect();
+    tables.iter().for_each(|t| t.write(w));
+    let mut coder = SymbolEncoder::new();
+    for &i in order {
+        for (c, table) in tables.iter().enumerate() {
+            coder.value(table, value(i, c));
+        }
+    }
+    w.extend(&coder.finish());
+}
+
+/// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
+/// `count` Gaussians.
+fn read_block(
+    tag: Tag,
+    payload: &[u8],
+    steps: usize,
+    channels: usize,
+    count: usize,
+) -> Result<(Vec<f32>, Vec<i32>), DecodeError> {
+    let name = String::from_utf8_lossy(&tag.0).into_owned();
+    let mut r = FieldReader::new(&name, payload);
+    let mut step_values = Vec::with_capacity(steps);
+    for _ in 0..steps {
+        let s = r.f32("step")?;
+        if !(s > 0.0) {
+            return Err(r.error("step", format!("{s} is not positive")).into());
+        }
+        step_values.push(s);
+    }
+    let tables = (0..channels).map(|_| FrequencyTable::read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
+    let coded = r.rest();
+    if count == 0 {
+        return Ok((step_values, vec![]));
+    }
+    let mut coder = SymbolDecoder::new(coded).map_err(|e| DecodeError::coded(tag, e))?;
+    let mut values = Vec::with_capacity(count * channels);
+    for _ in 0..count {
+        for table in &tables {
+            values.push(coder.value(table).map_err(|e: EntropyError| DecodeError::coded(tag, e))?);
+        }
+    }
+    Ok((step_values, values))
+}

@@ -1,0 +1,269 @@
+//! Turning trained Gaussians into a stream: the encoder's choices (quantization steps, grid
+//! resolution, what to drop), then the decoder library's writer, then the decoder library's
+//! reader, so that what the encoder evaluates is exactly what a decoder will show.
+
+use pwgs_decoder::gaussians::{Gaussians, sh_coeff_count};
+use pwgs_decoder::stream::header::{BaseKind, Header};
+use pwgs_decoder::stream::octree::{MAX_DEPTH, OctreeError};
+use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
+use pwgs_decoder::stream::{self, Decoded};
+
+/// The size/quality knob: 5 is the default; each step up halves every quantization step's
+/// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
+pub const DEFAULT_QUALITY: u8 = 5;
+pub const MAX_QUALITY: u8 = 10;
+
+/// Quantization choices of the plain-3DGS coder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuantizerSettings {
+    /// Grid cells along the robust extent of the scene (the central 98% of positions) are
+    /// `2^position_bits`.
+    pub position_bits: u8,
+    pub log_scale_step: f32,
+    pub rotation_step: f32,
+    pub opacity_step: f32,
+    pub dc_step: f32,
+    /// Steps of SH bands 1, 2, 3.
+    pub band_steps: [f32; 3],
+}
+
+impl QuantizerSettings {
+    /// Settings for a quality level in `0..=MAX_QUALITY`.
+    pub fn for_quality(quality: u8) -> Self {
+        let q = f32::from(quality.min(MAX_QUALITY));
+        let d = f32::from(DEFAULT_QUALITY);
+        let factor = 2f32.powf((d - q) / 2.0);
+        Self {
+            position_bits: (12.0 + (q - d) / 2.0).round() as u8,
+            log_scale_step: 0.32 * factor,
+            rotation_step: 0.016 * factor,
+            opacity_step: 0.4 * factor,
+            dc_step: 0.16 * factor,
+            band_steps: [0.12 * factor, 0.16 * factor, 0.2 * factor],
+        }
+    }
+}
+
+impl Default for QuantizerSettings {
+    fn default() -> Self {
+        Self::for_quality(DEFAULT_QUALITY)
+    }
+}
+
+/// A written stream, what a decoder reconstructs from it, and what the encoder dropped.
+pub struct Compressed {
+    pub bytes: Vec<u8>,
+    pub decoded: Decoded,
+    /// Gaussians dropped as invisible (opacity below 1/255 after quantization).
+    pub invisible: usize,
+    /// SH degree of the input and of the stream (bands that quantize to zero everywhere are
+    /// dropped).
+    pub sh_degree_in: u32,
+}
+
+/// Why Gaussians could not be compressed.
+#[derive(Debug, thiserror::Error)]
+pub enum CompressError {
+    #[error("the model has a non-finite {0}")]
+    NonFinite(&'static str),
+    #[error(transparent)]
+    Octree(#[from] OctreeError),
+    #[error("the stream the encoder wrote does not decode: {0}")]
+    SelfCheck(#[from] stream::DecodeError),
+    #[error("{count} Gaussians exceed the stream limit of {limit}")]
+    TooMany { count: usize, limit: u32 },
+}
+
+/// Scene normalization and render settings stored in the header.
+#[derive(Debug, Clone, Copy)]
+pub struct StreamContext {
+    pub center: [f32; 3],
+    pub scale: f32,
+    pub background: [f32; 3],
+}
+
+impl StreamContext {
+    /// A normalization for Gaussians without cameras (an imported PLY): the per-axis median
+    /// position and 1.1 times the 95th percentile of the distance to it.
+    pub fn from_gaussians(g: &Gaussians, background: [f32; 3]) -> Self {
+        if g.is_empty() {
+            return Self { center: [0.0; 3], scale: 1.0, background };
+        }
+        let center: [f32; 3] = std::array::from_fn(|a| {
+            let mut v: Vec<f32> = g.means.iter().map(|m| m[a]).collect();
+            v.sort_by(f32::total_cmp);
+            v[v.len() / 2]
+        });
+        let mut d: Vec<f32> = g
+            .means
+            .iter()
+            .map(|m| ((m[0] - center[0]).powi(2) + (m[1] - center[1]).powi(2) + (m[2] - center[2]).powi(2)).sqrt())
+            .collect();
+        d.sort_by(f32::total_cmp);
+        let scale = (d[(d.len() * 95 / 100).min(d.len() - 1)] * 1.1).max(1e-6);
+        Self { center, scale, background }
+    }
+}
+
+/// Quantizes, writes and decodes back.
+pub fn compress(
+    g: &Gaussians,
+    settings: &QuantizerSettings,
+    context: &StreamContext,
+) -> Result<Compressed, CompressError> {
+    check_finite(g)?;
+    let visible = visible_after_quantization(g, settings.opacity_step);
+    let invisible = g.len() - visible.len();
+    if visible.len() > stream::header::MAX_GAUSSIANS as usize {
+        return Err(CompressError::TooMany { count: visible.len(), limit: stream::header::MAX_GAUSSIANS });
+    }
+    let mut content = quantize(g, &visible, settings);
+    let header = Header {
+        base: BaseKind::Plain3dgs,
+        gaussian_count: content.len() as u32,
+        sh_degree: content.sh_degree,
+        center: context.center,
+        scale: context.scale,
+        background: context.background,
+    };
+    // Several Gaussians can share a grid cell; a cell holds at most 255, so refine the grid
+    // until none overflows.
+    let bytes = loop {
+        match stream::encode(&header, &content) {
+            Ok(bytes) => break bytes,
+            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => {
+                let finer =
+                    PositionGrid { cell: content.grid.cell / 2.0, depth: content.grid.depth + 1, ..content.grid };
+                content.positions = quantize_positions(g, &visible, &finer);
+                content.grid = finer;
+            }
+            Err(e) => return Err(e.into()),
+        }
+    };
+    let decoded = stream::decode(&bytes)?;
+    Ok(Compressed { bytes, decoded, invisible, sh_degree_in: g.sh_degree })
+}
+
+fn check_finite(g: &Gaussians) -> Result<(), CompressError> {
+    let finite = |v: &[f32]| v.iter().all(|x| x.is_finite());
+    let checks: [(&'static str, bool); 5] = [
+        ("position", finite(g.means.as_flattened())),
+        ("scale", finite(g.log_scales.as_flattened())),
+        ("rotation", finite(g.rotations.as_flattened())),
+        ("opacity", finite(&g.opacity_logits)),
+        ("SH coefficient", finite(&g.sh)),
+    ];
+    match checks.iter().find(|(_, ok)| !ok) {
+        Some((what, _)) => Err(CompressError::NonFinite(what)),
+        None => Ok(()),
+    }
+}
+
+fn quantize_value(v: f32, step: f32) -> i32 {
+    let limit = (pwgs_decoder::stream::entropy::MAX_MAGNITUDE - 1) as f32;
+    (v / step).round().clamp(-limit, limit) as i32
+}
+
+/// Indices of Gaussians that can show in a render: the rasterizer skips any alpha below 1/255,
+/// and alpha never exceeds the opacity, so lower opacities never contribute.
+fn visible_after_quantization(g: &Gaussians, opacity_step: f32) -> Vec<usize> {
+    let threshold_logit = (1.0f32 / 254.0).ln(); // sigmoid(x) >= 1/255  <=>  x >= ln(1/254)
+    (0..g.len())
+        .filter(|&i| quantize_value(g.opacity_logits[i], opacity_step) as f32 * opacity_step >= threshold_logit)
+        .collect()
+}
+
+/// The grid: origin at the minimum corner, cells sized from the robust extent, deep enough to
+/// hold every position (coarser cells if 24 bits cannot reach the farthest outlier).
+fn choose_grid(g: &Gaussians, visible: &[usize], bits: u8) -> PositionGrid {
+    if visible.is_empty() {
+        return PositionGrid { origin: [0.0; 3], cell: 1.0, depth: 1 };
+    }
+    let mut robust = 0.0f64;
+    let mut full = 0.0f64;
+    let mut origin = [0.0f32; 3];
+    for a in 0..3 {
+        let mut v: Vec<f32> = visible.iter().map(|&i| g.means[i][a]).collect();
+        v.sort_by(f32::total_cmp);
+        let at = |p: usize| f64::from(v[(v.len() - 1) * p / 100]);
+        robust = robust.max(at(99) - at(1));
+        full = full.max(f64::from(v[v.len() - 1]) - f64::from(v[0]));
+        origin[a] = v[0];
+    }
+    let robust = if robust > 0.0 { robust } else { full.max(1e-6) };
+    let mut cell = robust / f64::from(1u32 << bits);
+    let mut depth = 1u8;
+    while depth < MAX_DEPTH && f64::from(1u32 << depth) * cell <= full {
+        depth += 1;
+    }
+    if f64::from(1u32 << depth) * cell <= full {
+        cell = full / (f64::from(1u32 << MAX_DEPTH) - 1.0);
+    }
+    PositionGrid { origin, cell: cell as f32, depth }
+}
+
+fn quantize_positions(g: &Gaussians, visible: &[usize], grid: &PositionGrid) -> Vec<[u32; 3]> {
+    let max = (1u64 << grid.depth) - 1;
+    visible
+        .iter()
+        .map(|&i| {
+            std::array::from_fn(|a| {
+                let t = (f64::from(g.means[i][a]) - f64::from(grid.origin[a])) / f64::from(grid.cell);
+                (t.round().max(0.0) as u64).min(max) as u32
+            })
+        })
+        .collect()
+}
+
+fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
+    let norm = q.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>().sqrt();
+    let unit: [f64; 4] = if norm > 0.0 { q.map(|c| f64::from(c) / norm) } else { [1.0, 0.0, 0.0, 0.0] };
+    let largest = (0..4).fold(0, |best, i| if unit[i].abs() > unit[best].abs() { i } else { best });
+    let sign = if unit[largest] < 0.0 { -1.0 } else { 1.0 };
+    let mut rest = [0; 3];
+    for (slot, i) in (0..4).filter(|&i| i != largest).enumerate() {
+        rest[slot] = quantize_value((unit[i] * sign) as f32, step);
+    }
+    QuantizedRotation { largest: largest as u8, rest }
+}
+
+fn quantize(g: &Gaussians, visible: &[usize], s: &QuantizerSettings) -> PlainGaussians {
+    let grid = choose_grid(g, visible, s.position_bits);
+    let k = sh_coeff_count(g.sh_degree);
+    let band_step = |coef: usize| s.band_steps[(1..=3).find(|&l| coef < (l + 1) * (l + 1)).unwrap_or(1) - 1];
+    let full_rest: Vec<i32> = visible
+        .iter()
+        .flat_map(|&i| {
+            let sh = g.sh_of(i);
+            (3..k * 3).map(move |j| quantize_value(sh[j], band_step(j / 3)))
+        })
+        .collect();
+    // Keep the bands up to the highest one with any nonzero quantized coefficient.
+    let rest_in = (k - 1) * 3;
+    let degree = (0..=g.sh_degree)
+        .rev()
+        .find(|&d| {
+            let lo = (sh_coeff_count(d.saturating_sub(1)) - 1) * 3;
+            let hi = (sh_coeff_count(d) - 1) * 3;
+            d == 0 || full_rest.chunks(rest_in).any(|c| c[lo..hi].iter().any(|&v| v != 0))
+        })
+        .unwrap_or(0);
+    let rest_out = (sh_coeff_count(degree) - 1) * 3;
+    let sh_rest =
+        if rest_in == 0 { vec![] } else { full_rest.chunks(rest_in).flat_map(|c| c[..rest_out].to_vec()).collect() };
+    PlainGaussians {
+        positions: quantize_positions(g, visible, &grid),
+        grid,
+        scale_step: s.log_scale_step,
+        log_scales: visible.iter().map(|&i| g.log_scales[i].map(|v| quantize_value(v, s.log_scale_step))).collect(),
+        rotation_step: s.rotation_step,
+        rotations: visible.iter().map(|&i| quantize_rotation(g.rotations[i], s.rotation_step)).collect(),
+        opacity_step: s.opacity_step,
+        opacity_logits: visible.iter().map(|&i| quantize_value(g.opacity_logits[i], s.opacity_step)).collect(),
+        sh_degree: degree,
+        dc_step: s.dc_step,
+        sh_dc: visible.iter().map(|&i| std::array::from_fn(|c| quantize_value(g.sh_of(i)[c], s.dc_step))).collect(),
+        band_steps: s.band_steps[..degree as usize].to_vec(),
+        sh_rest,
+    }
+}
