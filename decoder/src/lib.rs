@@ -3,6 +3,7 @@
 
 pub mod atomic_file;
 pub mod camera;
+pub mod camera_json;
 pub mod gaussians;
 pub mod ply;
 pub mod random_scene;

@@ -160,7 +160,7 @@ pub fn decode(bytes: &[u8], depth: u8, count: usize) -> Result<Vec<[u32; 3]>, Oc
         }
         nodes = next;
     }
-    let mut points = Vec::with_capacity(count);
+    let mut points = Vec::with_capacity(nodes.len());
     for &(p, _) in &nodes {
         let mut n = 1u32;
         while n < MAX_POINTS_PER_VOXEL && coder.bit(&mut contexts.count[(n - 1).min(3) as usize])? {

@@ -3,6 +3,7 @@
 //! channel entropy-coded with its own frequency table.
 
 use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
+use rayon::prelude::*;
 
 use super::DecodeError;
 use super::entropy::{EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
@@ -149,45 +150,28 @@ impl PlainGaussians {
         Ok(sections)
     }
 
-    /// Reads and decodes the content sections (each on its own thread; the result does not
-    /// depend on the thread count).
+    /// Reads and decodes the content sections. Positions come first: the octree proves with its
+    /// own coded data that the declared count is real before anything is allocated for it.
+    /// The attribute sections then decode in parallel (the result does not depend on the
+    /// thread count).
     pub(super) fn read_sections(container: &Container, count: usize, sh_degree: u32) -> Result<Self, DecodeError> {
         let payload = |tag: Tag| container.section(tag).map(|s| s.payload).ok_or(DecodeError::MissingSection(tag));
         let rest = (sh_coeff_count(sh_degree) - 1) * 3;
-        let (positions, (scales, (rotations, (opacities, (colors, sh_rest))))) = rayon::join(
-            || read_positions(payload(POSITIONS)?, count),
-            || {
-                rayon::join(
-                    || read_block(SCALES, payload(SCALES)?, 1, 3, count),
-                    || {
-                        rayon::join(
-                            || read_block(ROTATIONS, payload(ROTATIONS)?, 1, 4, count),
-                            || {
-                                rayon::join(
-                                    || read_block(OPACITIES, payload(OPACITIES)?, 1, 1, count),
-                                    || {
-                                        rayon::join(
-                                            || read_block(COLORS, payload(COLORS)?, 1, 3, count),
-                                            || match rest {
-                                                0 => Ok((vec![], vec![])),
-                                                _ => read_block(
-                                                    SH_REST,
-                                                    payload(SH_REST)?,
-                                                    sh_degree as usize,
-                                                    rest,
-                                                    count,
-                                                ),
-                                            },
-                                        )
-                                    },
-                                )
-                            },
-                        )
-                    },
-                )
-            },
-        );
-        let (grid, positions) = positions?;
+        let (grid, positions) = read_positions(payload(POSITIONS)?, count)?;
+        let blocks: [(Tag, usize, usize); 5] =
+            [(SCALES, 1, 3), (ROTATIONS, 1, 4), (OPACITIES, 1, 1), (COLORS, 1, 3), (SH_REST, sh_degree as usize, rest)];
+        let mut decoded: Vec<Result<(Vec<f32>, Vec<i32>), DecodeError>> = blocks
+            .par_iter()
+            .map(|&(tag, steps, channels)| match channels {
+                0 => Ok((vec![], vec![])),
+                _ => read_block(tag, payload(tag)?, steps, channels, count),
+            })
+            .collect();
+        let sh_rest = decoded.pop().expect("five blocks");
+        let colors = decoded.pop().expect("five blocks");
+        let opacities = decoded.pop().expect("five blocks");
+        let rotations = decoded.pop().expect("five blocks");
+        let scales = decoded.pop().expect("five blocks");
         let (scale_steps, scales) = scales?;
         let (rotation_steps, rotation_values) = rotations?;
         let (opacity_steps, opacity_logits) = opacities?;

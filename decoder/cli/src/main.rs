@@ -1,0 +1,182 @@
+//! `pwdec`: the pwgs decoder's command line. Decodes a stream with the decoder library and
+//! renders views from camera files or a dataset's cameras, exports the Gaussians as a PLY, or
+//! prints what a stream holds.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use pwgs_bitstream::Container;
+use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_decoder::camera::Camera;
+use pwgs_decoder::camera_json::parse_camera;
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::stream::{self, Decoded, attribute_hash};
+
+#[derive(Parser)]
+#[command(
+    name = "pwdec",
+    version,
+    about = "pwgs decoder: renders views of a pwgs stream, exports it as PLY, prints its contents",
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    decode: DecodeArgs,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print the stream's version, header and section sizes (verifies every CRC; decodes
+    /// nothing else).
+    Info { stream: PathBuf },
+}
+
+#[derive(Clone, Copy, PartialEq, ValueEnum)]
+enum Split {
+    Test,
+    Train,
+    All,
+}
+
+#[derive(Args)]
+struct DecodeArgs {
+    /// The stream (.pwb).
+    #[arg(required = true)]
+    stream: Option<PathBuf>,
+    /// Render the view described by this camera file (see SPEC.md annex A) to -o.
+    #[arg(long, requires = "output", conflicts_with = "views")]
+    view: Option<PathBuf>,
+    /// Render the cameras of this scene folder (COLMAP, transforms.json or LLFF) into the folder
+    /// -o, one PNG per view named after its image.
+    #[arg(long, requires = "output")]
+    views: Option<PathBuf>,
+    /// Which views of --views to render.
+    #[arg(long, value_enum, default_value = "test")]
+    split: Split,
+    /// Image downscale of --views (as at encoding, e.g. 8 for fern at 504x378).
+    #[arg(long, default_value_t = 1)]
+    downscale: u32,
+    /// Output PNG (--view) or folder (--views).
+    #[arg(short, long)]
+    output: Option<PathBuf>,
+    /// Write the decoded Gaussians as an INRIA PLY.
+    #[arg(long)]
+    export_ply: Option<PathBuf>,
+    /// Print the SHA-256 of the decoded attributes (equal hashes: bit-identical decoding).
+    #[arg(long)]
+    hash: bool,
+    /// Worker threads (default: all cores). The output does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Some(Command::Info { stream }) => info(&stream),
+        None => decode(cli.decode),
+    }
+}
+
+fn read_stream(path: &Path) -> Result<Vec<u8>> {
+    std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))
+}
+
+fn info(path: &Path) -> Result<()> {
+    let bytes = read_stream(path)?;
+    let (container, header) =
+        stream::parse(&bytes).with_context(|| format!("{} is not a valid stream", path.display()))?;
+    print_info(path, &bytes, &container, &header);
+    Ok(())
+}
+
+fn print_info(path: &Path, bytes: &[u8], container: &Container, header: &stream::header::Header) {
+    println!("stream        {} ({} bytes)", path.display(), bytes.len());
+    println!("version       {}.{}", container.major, container.minor);
+    println!("base          {}", header.base.name());
+    println!("gaussians     {}", header.gaussian_count);
+    println!("sh degree     {}", header.sh_degree);
+    println!("normalization center {:?}, scale {}", header.center, header.scale);
+    println!("background    {:?}", header.background);
+    println!("sections      (bytes incl. 12 bytes of tag, length and CRC)");
+    for s in &container.sections {
+        let share = 100.0 * (s.payload.len() + 12) as f64 / bytes.len() as f64;
+        let kind = if s.tag.is_critical() { "" } else { "  (optional)" };
+        println!("  {}  {:>10}  {share:5.1}%{kind}", s.tag, s.payload.len() + 12);
+    }
+}
+
+fn decode(args: DecodeArgs) -> Result<()> {
+    if args.view.is_none() && args.views.is_none() && args.export_ply.is_none() && !args.hash {
+        bail!("nothing to do: give --view, --views, --export-ply or --hash (or run `pwdec info STREAM`)");
+    }
+    if let Some(threads) = args.threads {
+        rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global().context("cannot start threads")?;
+    }
+    let path = args.stream.as_deref().expect("clap requires the stream");
+    let bytes = read_stream(path)?;
+    let start = Instant::now();
+    let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
+    eprintln!("decoded {} Gaussians in {:.3} s", decoded.gaussians.len(), start.elapsed().as_secs_f64());
+    if args.hash {
+        println!("{}", attribute_hash(&decoded.gaussians));
+    }
+    if let Some(ply) = &args.export_ply {
+        pwgs_decoder::ply::write_gaussians(ply, &decoded.gaussians)?;
+        eprintln!("wrote {}", ply.display());
+    }
+    if let Some(view) = &args.view {
+        let text = std::fs::read_to_string(view).with_context(|| format!("cannot read {}", view.display()))?;
+        let camera = parse_camera(&text).with_context(|| format!("{}: bad camera", view.display()))?;
+        let out = args.output.as_deref().expect("clap requires -o");
+        render_to(&decoded, &camera, out)?;
+    }
+    if let Some(scene) = &args.views {
+        let out = args.output.as_deref().expect("clap requires -o");
+        render_dataset(&decoded, scene, args.split, args.downscale, out)?;
+    }
+    Ok(())
+}
+
+fn render_to(decoded: &Decoded, camera: &Camera, out: &Path) -> Result<()> {
+    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
+    let start = Instant::now();
+    let image = render(&decoded.gaussians, camera, &options);
+    image.save_png(out)?;
+    eprintln!("wrote {} ({}x{}) in {:.3} s", out.display(), camera.width, camera.height, start.elapsed().as_secs_f64());
+    Ok(())
+}
+
+fn render_dataset(decoded: &Decoded, scene: &Path, split: Split, downscale: u32, out: &Path) -> Result<()> {
+    let options = LoadOptions { downscale, background: decoded.header.background, ..Default::default() };
+    let data = load_scene(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))?;
+    let views: Vec<_> = match split {
+        Split::Test => data.test.iter().collect(),
+        Split::Train => data.train.iter().collect(),
+        Split::All => data.train.iter().chain(&data.test).collect(),
+    };
+    if views.is_empty() {
+        bail!("{} has no views in that split", scene.display());
+    }
+    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    for view in views {
+        let stem = Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
+        render_to(decoded, &view.camera, &out.join(format!("{stem}.png")))?;
+    }
+    Ok(())
+}
