@@ -6,7 +6,7 @@ use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 use rayon::prelude::*;
 
 use super::DecodeError;
-use super::entropy::{EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
+use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
 use super::octree::{self, MAX_DEPTH, OctreeError};
 use crate::gaussians::{Gaussians, sh_coeff_count};
 
@@ -214,6 +214,10 @@ fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u3
     if !(1..=MAX_DEPTH).contains(&depth) {
         return Err(r.error("depth", format!("{depth} is outside 1..={MAX_DEPTH}")).into());
     }
+    let far = origin.iter().map(|o| f64::from(o.abs())).fold(0.0, f64::max) + f64::from(cell) * f64::from(1u32 << depth);
+    if !(far < f64::from(f32::MAX)) {
+        return Err(r.error("cell", format!("a {depth}-level grid of cell {cell} reaches beyond binary32")).into());
+    }
     let positions = octree::decode(r.rest(), depth, count).map_err(|e| DecodeError::coded(POSITIONS, e))?;
     Ok((PositionGrid { origin, cell, depth }, positions))
 }
@@ -247,8 +251,9 @@ fn read_block(
     let mut step_values = Vec::with_capacity(steps);
     for _ in 0..steps {
         let s = r.f32("step")?;
-        if !(s > 0.0) {
-            return Err(r.error("step", format!("{s} is not positive")).into());
+        // Every quantized value (below 2^24 in magnitude) times the step must stay finite.
+        if !(s > 0.0 && (s * MAX_MAGNITUDE as f32).is_finite()) {
+            return Err(r.error("step", format!("{s} is not positive or too large")).into());
         }
         step_values.push(s);
     }
