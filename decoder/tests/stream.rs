@@ -24,11 +24,7 @@ fn random_content(n: usize, degree: u32, seed: u64) -> PlainGaussians {
     let positions: Vec<[u32; 3]> = (0..n)
         .map(|i| {
             // A few shared cells, as duplicated Gaussians produce.
-            if i % 50 == 1 {
-                [7, 7, 7]
-            } else {
-                std::array::from_fn(|_| (rng.uniform(0.3, 0.7) * side as f32) as u32)
-            }
+            if i % 50 == 1 { [7, 7, 7] } else { std::array::from_fn(|_| (rng.uniform(0.3, 0.7) * side as f32) as u32) }
         })
         .collect();
     PlainGaussians {
@@ -128,7 +124,10 @@ fn reconstruction_follows_the_spec_formulas() {
         }
         let r = g.rotations[i];
         let norm: f32 = r.iter().map(|c| c * c).sum::<f32>().sqrt();
-        assert!((norm - 1.0).abs() < 1e-5 || content.rotations[i].rest.iter().map(|&v| (v as f32 * 0.01).powi(2)).sum::<f32>() > 1.0);
+        assert!(
+            (norm - 1.0).abs() < 1e-5
+                || content.rotations[i].rest.iter().map(|&v| (v as f32 * 0.01).powi(2)).sum::<f32>() > 1.0
+        );
         assert!(r[content.rotations[i].largest as usize] >= 0.0);
         assert_eq!(g.opacity_logits[i], content.opacity_logits[i] as f32 * 0.1);
         // Band-1 coefficients use the band-1 step.
@@ -212,7 +211,8 @@ fn mutated_streams_never_panic() {
         }
         if round % 3 == 2 {
             // Rewrite one byte inside a section's payload, keeping the container valid.
-            let tags: Vec<Tag> = pwgs_bitstream::Container::parse(&original).unwrap().sections.iter().map(|s| s.tag).collect();
+            let tags: Vec<Tag> =
+                pwgs_bitstream::Container::parse(&original).unwrap().sections.iter().map(|s| s.tag).collect();
             let tag = tags[pick(&mut rng, tags.len())];
             let (at, value) = (rng.next_u64() as usize, (rng.next_u64() & 0xff) as u8);
             b = with_payload(&original, tag, |p| {
@@ -232,7 +232,12 @@ fn mutated_streams_never_panic() {
         }
         outcomes[result.is_ok() as usize] += 1;
     }
-    eprintln!("3000 mutations: {} rejected, {} decoded, {:.1} s", outcomes[0], outcomes[1], start.elapsed().as_secs_f64());
+    eprintln!(
+        "3000 mutations: {} rejected, {} decoded, {:.1} s",
+        outcomes[0],
+        outcomes[1],
+        start.elapsed().as_secs_f64()
+    );
     assert!(outcomes[0] > 1500, "most mutations must be detected: {outcomes:?}");
 }
 

@@ -35,11 +35,11 @@ impl QuantizerSettings {
         let factor = 2f32.powf((d - q) / 2.0);
         Self {
             position_bits: (12.0 + (q - d) / 2.0).round() as u8,
-            log_scale_step: 0.32 * factor,
+            log_scale_step: 0.16 * factor,
             rotation_step: 0.016 * factor,
             opacity_step: 0.4 * factor,
             dc_step: 0.16 * factor,
-            band_steps: [0.12 * factor, 0.16 * factor, 0.2 * factor],
+            band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
         }
     }
 }

@@ -214,7 +214,8 @@ fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u3
     if !(1..=MAX_DEPTH).contains(&depth) {
         return Err(r.error("depth", format!("{depth} is outside 1..={MAX_DEPTH}")).into());
     }
-    let far = origin.iter().map(|o| f64::from(o.abs())).fold(0.0, f64::max) + f64::from(cell) * f64::from(1u32 << depth);
+    let far =
+        origin.iter().map(|o| f64::from(o.abs())).fold(0.0, f64::max) + f64::from(cell) * f64::from(1u32 << depth);
     if !(far < f64::from(f32::MAX)) {
         return Err(r.error("cell", format!("a {depth}-level grid of cell {cell} reaches beyond binary32")).into());
     }
