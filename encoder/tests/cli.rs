@@ -58,3 +58,45 @@ fn bad_input_is_a_clear_error() {
         assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     }
 }
+
+#[test]
+fn compresses_an_imported_ply() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let model = pwgs_decoder::random_scene::random_gaussians(
+        &mut pwgs_decoder::random_scene::SplitMix64(3),
+        800,
+        2,
+        [-4.0, -2.5],
+    );
+    pwgs_decoder::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();
+    let out = pwenc(&[
+        "--from-ply",
+        &path("in.ply"),
+        "-o",
+        &path("out.pwb"),
+        "--quality",
+        "7",
+        "--orbit",
+        "2",
+        "--orbit-size",
+        "64",
+        "--up",
+        "0,-1,0",
+        "--report",
+        &path("report.json"),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(path("report.json")).unwrap()).unwrap();
+    let bytes = std::fs::read(path("out.pwb")).unwrap();
+    assert_eq!(report["stream"]["bytes"].as_u64().unwrap(), bytes.len() as u64);
+    assert_eq!(report["orbit_psnr"].as_array().unwrap().len(), 2);
+    // The hash the encoder reports is that of what the decoder library decodes.
+    let decoded = pwgs_decoder::stream::decode(&bytes).unwrap();
+    assert_eq!(report["stream"]["attribute_sha256"], pwgs_decoder::stream::attribute_hash(&decoded.gaussians));
+    assert_eq!(decoded.gaussians.len(), 800);
+    // Without -o there is nowhere to write.
+    let out = pwenc(&["--from-ply", &path("in.ply")]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--output"));
+}

@@ -1,0 +1,93 @@
+//! The conformance runner: a decoder conforms when, for every vector in `vectors/`, it
+//! decodes the stream to attributes with the expected SHA-256 (bit-exact: SPEC.md section 7)
+//! and renders each listed camera within the render tolerance (rendering is not bit-normative:
+//! DESIGN.md section 5, rule 5).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use pwgs_decoder::camera_json::parse_camera;
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::stream::{self, attribute_hash};
+use serde::Deserialize;
+
+/// Largest difference of an 8-bit channel value allowed anywhere.
+pub const MAX_CHANNEL_DIFFERENCE: u8 = 2;
+/// Fraction of channel values that must be within 1 of the expected value.
+pub const WITHIN_ONE_FRACTION: f64 = 0.999;
+
+#[derive(Deserialize)]
+struct Expected {
+    stream: String,
+    version: [u16; 2],
+    gaussians: u32,
+    sh_degree: u32,
+    attribute_sha256: String,
+    renders: Vec<ExpectedRender>,
+}
+
+#[derive(Deserialize)]
+struct ExpectedRender {
+    camera: String,
+    image: String,
+}
+
+/// The folder holding the vectors.
+pub fn vectors_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("vectors")
+}
+
+/// Every vector folder (one with an `expected.json`), sorted.
+pub fn vectors() -> Result<Vec<PathBuf>> {
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(vectors_dir())?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("expected.json").is_file())
+        .collect();
+    dirs.sort();
+    Ok(dirs)
+}
+
+/// What checking one render found.
+#[derive(Debug)]
+pub struct RenderCheck {
+    pub image: String,
+    pub max_difference: u8,
+    pub within_one: f64,
+}
+
+/// Checks the decoder library against one vector.
+pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
+    let text = std::fs::read_to_string(dir.join("expected.json"))?;
+    let expected: Expected = serde_json::from_str(&text).context("expected.json")?;
+    let bytes = std::fs::read(dir.join(&expected.stream))?;
+    let (container, _) = stream::parse(&bytes)?;
+    if [container.major, container.minor] != expected.version {
+        bail!("version {}.{}, expected {:?}", container.major, container.minor, expected.version);
+    }
+    let decoded = stream::decode(&bytes)?;
+    if decoded.header.gaussian_count != expected.gaussians || decoded.header.sh_degree != expected.sh_degree {
+        bail!("{} Gaussians of degree {}", decoded.header.gaussian_count, decoded.header.sh_degree);
+    }
+    let hash = attribute_hash(&decoded.gaussians);
+    if hash != expected.attribute_sha256 {
+        bail!("decoded attributes hash to {hash}, expected {}", expected.attribute_sha256);
+    }
+    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
+    let mut checks = Vec::new();
+    for r in &expected.renders {
+        let camera = parse_camera(&std::fs::read_to_string(dir.join(&r.camera))?)?;
+        let ours = render(&decoded.gaussians, &camera, &options).to_rgb8();
+        let reference = image::open(dir.join(&r.image))?.to_rgb8();
+        if ours.dimensions() != reference.dimensions() {
+            bail!("{}: rendered {:?}, expected {:?}", r.image, ours.dimensions(), reference.dimensions());
+        }
+        let diffs: Vec<u8> = ours.as_raw().iter().zip(reference.as_raw()).map(|(a, b)| a.abs_diff(*b)).collect();
+        let max_difference = diffs.iter().copied().max().unwrap_or(0);
+        let within_one = diffs.iter().filter(|&&d| d <= 1).count() as f64 / diffs.len() as f64;
+        if max_difference > MAX_CHANNEL_DIFFERENCE || within_one < WITHIN_ONE_FRACTION {
+            bail!("{}: max difference {max_difference}/255, {:.4}% within 1/255", r.image, within_one * 100.0);
+        }
+        checks.push(RenderCheck { image: r.image.clone(), max_difference, within_one });
+    }
+    Ok(checks)
+}

@@ -1,0 +1,92 @@
+//! `pwdec` end to end on the conformance stream, and its errors on bad input.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn pwdec(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pwdec")).args(args).output().expect("pwdec runs")
+}
+
+fn vector(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance/vectors/generated-3dgs").join(name)
+}
+
+fn expected_hash() -> String {
+    let text = std::fs::read_to_string(vector("expected.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["attribute_sha256"].as_str().unwrap().to_string()
+}
+
+fn stdout(out: &Output) -> String {
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn hash_is_the_encoders_with_any_thread_count() {
+    let stream = vector("stream.pwb");
+    for threads in ["1", "4"] {
+        let out = pwdec(&[stream.to_str().unwrap(), "--hash", "--threads", threads]);
+        assert_eq!(stdout(&out).trim(), expected_hash(), "{threads} threads");
+    }
+}
+
+#[test]
+fn renders_views_exports_ply_and_prints_info() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stream = vector("stream.pwb");
+    let s = stream.to_str().unwrap();
+    let png = tmp.path().join("view.png");
+    let ply = tmp.path().join("model.ply");
+    stdout(&pwdec(&[s, "--view", vector("view_opencv.json").to_str().unwrap(), "-o", png.to_str().unwrap()]));
+    assert_eq!(image::open(&png).unwrap().to_rgb8(), image::open(vector("view_opencv.png")).unwrap().to_rgb8());
+    stdout(&pwdec(&[s, "--export-ply", ply.to_str().unwrap()]));
+    let exported = pwgs_decoder::ply::read_gaussians(&ply).unwrap().gaussians;
+    let decoded = pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap().gaussians;
+    assert_eq!(exported, decoded);
+    let info = stdout(&pwdec(&["info", s]));
+    for needle in ["version       1.0", "gaussians     7077", "'POSN'", "'SHRS'"] {
+        assert!(info.contains(needle), "`{needle}` missing from:\n{info}");
+    }
+}
+
+#[test]
+fn bad_input_is_a_clear_error_and_leaves_outputs_alone() {
+    let tmp = tempfile::tempdir().unwrap();
+    let good = std::fs::read(vector("stream.pwb")).unwrap();
+    let write = |name: &str, bytes: &[u8]| {
+        let p = tmp.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let mut flipped = good.clone();
+    flipped[good.len() / 2] ^= 0x10;
+    let mut future = good.clone();
+    future[8] = 2;
+    let corrupt = write("corrupt.pwb", &flipped);
+    let truncated = write("truncated.pwb", &good[..good.len() - 100]);
+    let future = write("future.pwb", &future);
+    let text = write("text.pwb", b"hello");
+    let camera = write("camera.json", b"{\"width\": 10, \"height\": 10}");
+    let good_stream = write("good.pwb", &good);
+    let existing = write("existing.png", b"keep me");
+    let missing = tmp.path().join("missing.pwb");
+    for (args, needle) in [
+        (vec![corrupt.as_str(), "--hash"], "CRC"),
+        (vec![truncated.as_str(), "--hash"], "truncated"),
+        (vec![future.as_str(), "--hash"], "version 2.0"),
+        (vec![text.as_str(), "--hash"], "not a pwgs stream"),
+        (vec![missing.to_str().unwrap(), "--hash"], "missing.pwb"),
+        (vec!["info", truncated.as_str()], "truncated"),
+        (vec![good_stream.as_str()], "nothing to do"),
+        (vec![good_stream.as_str(), "--view", camera.as_str(), "-o", existing.as_str()], "camera.json"),
+        (vec![corrupt.as_str(), "--view", camera.as_str(), "-o", existing.as_str()], "CRC"),
+    ] {
+        let out = pwdec(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(stderr.contains(needle), "{args:?}: `{stderr}` should mention `{needle}`");
+        assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    }
+    assert_eq!(std::fs::read(&existing).unwrap(), b"keep me");
+}
