@@ -341,7 +341,7 @@ pub struct SymbolDecoder<'a> {
 
 impl<'a> SymbolDecoder<'a> {
     pub fn new(bytes: &'a [u8]) -> Result<Self, EntropyError> {
-        if bytes.len() % 4 != 0 {
+        if !bytes.len().is_multiple_of(4) {
             return Err(EntropyError::Unaligned(bytes.len()));
         }
         let overrun = Rc::new(Cell::new(0));

@@ -199,7 +199,7 @@ mod tests {
     fn round_trip_in_morton_order_with_shared_voxels() {
         for (depth, n) in [(1u8, 20usize), (3, 200), (12, 5000), (MAX_DEPTH, 3000)] {
             let mut points = random_points(n, depth, depth as u64);
-            points.extend_from_slice(&points[..5].to_vec()); // shared voxels
+            points.extend_from_within(..5); // shared voxels
             let (bytes, order) = encode(&points, depth).unwrap();
             let decoded = decode(&bytes, depth, points.len()).unwrap();
             let expected: Vec<[u32; 3]> = order.iter().map(|&i| points[i]).collect();

@@ -160,7 +160,7 @@ impl PlainGaussians {
         let (grid, positions) = read_positions(payload(POSITIONS)?, count)?;
         let blocks: [(Tag, usize, usize); 5] =
             [(SCALES, 1, 3), (ROTATIONS, 1, 4), (OPACITIES, 1, 1), (COLORS, 1, 3), (SH_REST, sh_degree as usize, rest)];
-        let mut decoded: Vec<Result<(Vec<f32>, Vec<i32>), DecodeError>> = blocks
+        let mut decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
             .map(|&(tag, steps, channels)| match channels {
                 0 => Ok((vec![], vec![])),
@@ -223,6 +223,9 @@ fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u3
     Ok((PositionGrid { origin, cell, depth }, positions))
 }
 
+/// A decoded attribute block: its steps and its values, Gaussian-major.
+type Block = (Vec<f32>, Vec<i32>);
+
 /// Block syntax: one frequency table per channel, then the range-coded values, Gaussian by
 /// Gaussian (in `order`), channel by channel.
 fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dyn Fn(usize, usize) -> i32) {
@@ -240,13 +243,7 @@ fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dy
 
 /// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
 /// `count` Gaussians.
-fn read_block(
-    tag: Tag,
-    payload: &[u8],
-    steps: usize,
-    channels: usize,
-    count: usize,
-) -> Result<(Vec<f32>, Vec<i32>), DecodeError> {
+fn read_block(tag: Tag, payload: &[u8], steps: usize, channels: usize, count: usize) -> Result<Block, DecodeError> {
     let name = String::from_utf8_lossy(&tag.0).into_owned();
     let mut r = FieldReader::new(&name, payload);
     let mut step_values = Vec::with_capacity(steps);
