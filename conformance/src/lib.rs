@@ -59,7 +59,8 @@ pub struct RenderCheck {
 pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
     let text = std::fs::read_to_string(dir.join("expected.json"))?;
     let expected: Expected = serde_json::from_str(&text).context("expected.json")?;
-    let bytes = std::fs::read(dir.join(&expected.stream))?;
+    let stream_path = dir.join(&expected.stream);
+    let bytes = std::fs::read(&stream_path).with_context(|| format!("cannot read {}", stream_path.display()))?;
     let (container, _) = stream::parse(&bytes)?;
     if [container.major, container.minor] != expected.version {
         bail!("version {}.{}, expected {:?}", container.major, container.minor, expected.version);
