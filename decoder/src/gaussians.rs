@@ -7,6 +7,12 @@ pub const fn sh_coeff_count(degree: u32) -> usize {
     ((degree + 1) * (degree + 1)) as usize
 }
 
+/// SH band (degree) of coefficient index `k` within a channel: `floor(sqrt(k))`, 0 for the DC
+/// term.
+pub fn sh_band(k: usize) -> usize {
+    (1..=MAX_SH_DEGREE as usize).find(|&l| k < (l + 1) * (l + 1)).unwrap_or(0)
+}
+
 /// Highest SH degree the project supports (the 3DGS standard).
 pub const MAX_SH_DEGREE: u32 = 3;
 
@@ -80,4 +86,15 @@ pub fn rgb_to_sh_dc(rgb: f32) -> f32 {
 /// Opacity logit of an opacity in (0, 1).
 pub fn opacity_to_logit(opacity: f32) -> f32 {
     (opacity / (1.0 - opacity)).ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sh_band_is_the_floor_of_the_square_root() {
+        let bands: Vec<usize> = (0..16).map(sh_band).collect();
+        assert_eq!(bands, [0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3]);
+    }
 }

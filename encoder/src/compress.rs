@@ -2,7 +2,7 @@
 //! resolution, what to drop), then the decoder library's writer, then the decoder library's
 //! reader, so that what the encoder evaluates is exactly what a decoder will show.
 
-use pwgs_decoder::gaussians::{Gaussians, sh_coeff_count};
+use pwgs_decoder::gaussians::{Gaussians, sh_band, sh_coeff_count};
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::octree::{MAX_DEPTH, OctreeError};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
@@ -56,9 +56,6 @@ pub struct Compressed {
     pub decoded: Decoded,
     /// Gaussians dropped as invisible (opacity below 1/255 after quantization).
     pub invisible: usize,
-    /// SH degree of the input and of the stream (bands that quantize to zero everywhere are
-    /// dropped).
-    pub sh_degree_in: u32,
 }
 
 /// Why Gaussians could not be compressed.
@@ -141,7 +138,7 @@ pub fn compress(
         }
     };
     let decoded = stream::decode(&bytes)?;
-    Ok(Compressed { bytes, decoded, invisible, sh_degree_in: g.sh_degree })
+    Ok(Compressed { bytes, decoded, invisible })
 }
 
 fn check_finite(g: &Gaussians) -> Result<(), CompressError> {
@@ -230,12 +227,11 @@ fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
 fn quantize(g: &Gaussians, visible: &[usize], s: &QuantizerSettings) -> PlainGaussians {
     let grid = choose_grid(g, visible, s.position_bits);
     let k = sh_coeff_count(g.sh_degree);
-    let band_step = |coef: usize| s.band_steps[(1..=3).find(|&l| coef < (l + 1) * (l + 1)).unwrap_or(1) - 1];
     let full_rest: Vec<i32> = visible
         .iter()
         .flat_map(|&i| {
             let sh = g.sh_of(i);
-            (3..k * 3).map(move |j| quantize_value(sh[j], band_step(j / 3)))
+            (3..k * 3).map(move |j| quantize_value(sh[j], s.band_steps[sh_band(j / 3) - 1]))
         })
         .collect();
     // Keep the bands up to the highest one with any nonzero quantized coefficient.

@@ -157,11 +157,15 @@ impl LoadArgs {
     }
 }
 
+/// Three comma-separated numbers, or `None`.
+fn three_numbers(s: &str) -> Option<[f32; 3]> {
+    let parts: Vec<f32> = s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().ok()?;
+    parts.try_into().ok()
+}
+
 fn parse_vector(s: &str) -> Result<[f32; 3], String> {
-    let parts: Vec<f32> =
-        s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
-    match parts.as_slice() {
-        [x, y, z] if parts.iter().all(|v| v.is_finite()) && parts.iter().any(|v| *v != 0.0) => Ok([*x, *y, *z]),
+    match three_numbers(s) {
+        Some(v) if v.iter().all(|c| c.is_finite()) && v.iter().any(|c| *c != 0.0) => Ok(v),
         _ => Err(format!("`{s}` is not a nonzero vector x,y,z")),
     }
 }
@@ -172,10 +176,8 @@ fn parse_color(s: &str) -> Result<[f32; 3], String> {
         "black" => return Ok([0.0; 3]),
         _ => {}
     }
-    let parts: Vec<f32> =
-        s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
-    match parts.as_slice() {
-        [r, g, b] if parts.iter().all(|v| (0.0..=1.0).contains(v)) => Ok([*r, *g, *b]),
+    match three_numbers(s) {
+        Some(rgb) if rgb.iter().all(|v| (0.0..=1.0).contains(v)) => Ok(rgb),
         _ => Err(format!("`{s}` is not `white`, `black` or three values in [0, 1] like 0.5,0.5,0.5")),
     }
 }
@@ -251,7 +253,7 @@ fn write_stream(
         quality,
         gaussians: header.gaussian_count,
         dropped_invisible: compressed.invisible,
-        sh_degree_in: compressed.sh_degree_in,
+        sh_degree_in: g.sh_degree,
         sh_degree: header.sh_degree,
         sections,
         attribute_sha256: attribute_hash(&compressed.decoded.gaussians),

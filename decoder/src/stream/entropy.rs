@@ -206,12 +206,6 @@ impl BitContext {
             self.ones = (self.ones + 1) >> 1;
         }
     }
-
-    /// Ideal cost of coding `bit` in the current state, in bits (for rate reports).
-    pub fn cost_bits(&self, bit: bool) -> f64 {
-        let p1 = f64::from(self.p_one()) / f64::from(TOTAL);
-        -(if bit { p1 } else { 1.0 - p1 }).log2()
-    }
 }
 
 /// One model as constriction sees it: a symbol's left cumulative and frequency, and the inverse.

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::DecodeError;
 use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
 use super::octree::{self, MAX_DEPTH, OctreeError};
-use crate::gaussians::{Gaussians, sh_coeff_count};
+use crate::gaussians::{Gaussians, sh_band, sh_coeff_count};
 
 pub const POSITIONS: Tag = Tag(*b"POSN");
 pub const SCALES: Tag = Tag(*b"SCAL");
@@ -78,11 +78,6 @@ pub struct PlainGaussians {
     pub sh_rest: Vec<i32>,
 }
 
-/// SH band of coefficient index `k` (0 is the DC term).
-fn band_of(k: usize) -> usize {
-    (1..=3).find(|&l| k < (l + 1) * (l + 1)).unwrap_or(0)
-}
-
 impl PlainGaussians {
     pub fn len(&self) -> usize {
         self.positions.len()
@@ -104,7 +99,7 @@ impl PlainGaussians {
         for i in 0..n {
             sh.extend(self.sh_dc[i].map(|q| q as f32 * self.dc_step));
             for (j, &q) in self.sh_rest[i * rest..(i + 1) * rest].iter().enumerate() {
-                sh.push(q as f32 * self.band_steps[band_of(1 + j / 3) - 1]);
+                sh.push(q as f32 * self.band_steps[sh_band(1 + j / 3) - 1]);
             }
         }
         Gaussians {
@@ -160,18 +155,16 @@ impl PlainGaussians {
         let (grid, positions) = read_positions(payload(POSITIONS)?, count)?;
         let blocks: [(Tag, usize, usize); 5] =
             [(SCALES, 1, 3), (ROTATIONS, 1, 4), (OPACITIES, 1, 1), (COLORS, 1, 3), (SH_REST, sh_degree as usize, rest)];
-        let mut decoded: Vec<Result<Block, DecodeError>> = blocks
+        let decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
             .map(|&(tag, steps, channels)| match channels {
                 0 => Ok((vec![], vec![])),
                 _ => read_block(tag, payload(tag)?, steps, channels, count),
             })
             .collect();
-        let sh_rest = decoded.pop().expect("five blocks");
-        let colors = decoded.pop().expect("five blocks");
-        let opacities = decoded.pop().expect("five blocks");
-        let rotations = decoded.pop().expect("five blocks");
-        let scales = decoded.pop().expect("five blocks");
+        let Ok([scales, rotations, opacities, colors, sh_rest]) = <[_; 5]>::try_from(decoded) else {
+            unreachable!("one result per block")
+        };
         let (scale_steps, scales) = scales?;
         let (rotation_steps, rotation_values) = rotations?;
         let (opacity_steps, opacity_logits) = opacities?;
