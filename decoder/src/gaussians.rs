@@ -10,7 +10,11 @@ pub const fn sh_coeff_count(degree: u32) -> usize {
 /// SH band (degree) of coefficient index `k` within a channel: `floor(sqrt(k))`, 0 for the DC
 /// term.
 pub fn sh_band(k: usize) -> usize {
-    (1..=MAX_SH_DEGREE as usize).find(|&l| k < (l + 1) * (l + 1)).unwrap_or(0)
+    let mut band = 0;
+    while (band + 1) * (band + 1) <= k {
+        band += 1;
+    }
+    band
 }
 
 /// Highest SH degree the project supports (the 3DGS standard).
