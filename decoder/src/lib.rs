@@ -10,3 +10,4 @@ pub mod random_scene;
 pub mod raster;
 pub mod rgb_image;
 pub mod stream;
+pub mod wrapper;

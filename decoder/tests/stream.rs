@@ -61,7 +61,7 @@ fn header_for(content: &PlainGaussians) -> Header {
 }
 
 fn encode(content: &PlainGaussians) -> Vec<u8> {
-    stream::encode(&header_for(content), content).unwrap()
+    stream::encode(&header_for(content), content, None).unwrap()
 }
 
 /// The content as a decoder lists it: the octree's order.

@@ -5,6 +5,7 @@ pub mod entropy;
 pub mod header;
 pub mod octree;
 pub mod plain;
+pub mod wrap;
 
 use pwgs_bitstream::{Container, FieldError, StreamError, Tag, write_container};
 use sha2::{Digest, Sha256};
@@ -12,6 +13,9 @@ use sha2::{Digest, Sha256};
 use crate::gaussians::Gaussians;
 use header::{BaseKind, Header};
 use plain::PlainGaussians;
+use wrap::{QuantizedSynthesis, WRAPPER};
+
+use crate::wrapper::synthesis::SynthesisWeights;
 
 /// Why a stream could not be decoded.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -38,16 +42,32 @@ impl DecodeError {
     }
 }
 
-/// Sections a plain-3DGS stream may hold.
-const PLAIN_SECTIONS: [Tag; 7] =
-    [Tag::HEAD, plain::POSITIONS, plain::SCALES, plain::ROTATIONS, plain::OPACITIES, plain::COLORS, plain::SH_REST];
+/// Critical sections a plain-3DGS stream may hold.
+const PLAIN_SECTIONS: [Tag; 8] = [
+    Tag::HEAD,
+    plain::POSITIONS,
+    plain::SCALES,
+    plain::ROTATIONS,
+    plain::OPACITIES,
+    plain::COLORS,
+    plain::SH_REST,
+    WRAPPER,
+];
 
-/// Writes a complete stream. The header's count and SH degree must match the content.
-pub fn encode(header: &Header, content: &PlainGaussians) -> Result<Vec<u8>, octree::OctreeError> {
+/// Writes a complete stream, with the perceptual wrapper when `wrapper` is given. The header's
+/// count and SH degree must match the content.
+pub fn encode(
+    header: &Header,
+    content: &PlainGaussians,
+    wrapper: Option<&QuantizedSynthesis>,
+) -> Result<Vec<u8>, octree::OctreeError> {
     assert_eq!(header.gaussian_count as usize, content.len(), "header count does not match the content");
     assert_eq!(header.sh_degree, content.sh_degree, "header SH degree does not match the content");
     let mut sections = vec![(Tag::HEAD, header.write())];
     sections.extend(content.write_sections()?);
+    if let Some(w) = wrapper {
+        sections.push((WRAPPER, w.write()));
+    }
     Ok(write_container(&sections))
 }
 
@@ -57,6 +77,8 @@ pub struct Decoded {
     pub header: Header,
     pub content: PlainGaussians,
     pub gaussians: Gaussians,
+    /// The synthesis network's dequantized weights, when the stream carries a wrapper.
+    pub wrapper: Option<SynthesisWeights>,
 }
 
 /// Parses, verifies and decodes a stream.
@@ -70,7 +92,11 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     let BaseKind::Plain3dgs = header.base;
     let content = PlainGaussians::read_sections(&container, header.gaussian_count as usize, header.sh_degree)?;
     let gaussians = content.dequantize();
-    Ok(Decoded { header, content, gaussians })
+    let wrapper = match container.section(WRAPPER) {
+        Some(section) => Some(QuantizedSynthesis::read(section.payload, container.minor)?.dequantize()),
+        None => None,
+    };
+    Ok(Decoded { header, content, gaussians, wrapper })
 }
 
 /// The container and header of a stream, every CRC verified, without decoding the content.
