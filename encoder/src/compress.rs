@@ -6,6 +6,7 @@ use pwgs_decoder::gaussians::{Gaussians, sh_band, sh_coeff_count};
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::octree::{MAX_DEPTH, OctreeError};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
+use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::stream::{self, Decoded};
 
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
@@ -102,11 +103,12 @@ impl StreamContext {
     }
 }
 
-/// Quantizes, writes and decodes back.
+/// Quantizes, writes (with the wrapper's section when given) and decodes back.
 pub fn compress(
     g: &Gaussians,
     settings: &QuantizerSettings,
     context: &StreamContext,
+    wrapper: Option<&QuantizedSynthesis>,
 ) -> Result<Compressed, CompressError> {
     check_finite(g)?;
     let visible = visible_after_quantization(g, settings.opacity_step);
@@ -126,7 +128,7 @@ pub fn compress(
     // Several Gaussians can share a grid cell; a cell holds at most 255, so refine the grid
     // until none overflows.
     let bytes = loop {
-        match stream::encode(&header, &content) {
+        match stream::encode(&header, &content, wrapper) {
             Ok(bytes) => break bytes,
             Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => {
                 let finer =

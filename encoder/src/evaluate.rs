@@ -9,8 +9,9 @@ use anyhow::{Context, Result};
 use burn::tensor::Device;
 use pwgs_dataset::Dataset;
 use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_decoder::wrapper::{WrapperView, render_shown};
 use serde::Serialize;
 
 use crate::metrics::image_tensor::image_tensor;
@@ -51,8 +52,15 @@ pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
     value.into_data().convert::<f64>().try_into_vec::<f64>().expect("scalar")[0]
 }
 
-/// Renders every test view, optionally saving `<out>/<name>.png`, and scores it with PSNR.
-pub fn evaluate(g: &Gaussians, data: &Dataset, options: &RenderOptions, out: Option<&Path>) -> Result<Vec<ViewScore>> {
+/// Renders every test view as a decoder shows it (through the wrapper when given), optionally
+/// saving `<out>/<name>.png`, and scores it with PSNR and SSIM.
+pub fn evaluate(
+    g: &Gaussians,
+    wrapper: Option<WrapperView>,
+    data: &Dataset,
+    options: &RenderOptions,
+    out: Option<&Path>,
+) -> Result<Vec<ViewScore>> {
     if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
@@ -60,7 +68,7 @@ pub fn evaluate(g: &Gaussians, data: &Dataset, options: &RenderOptions, out: Opt
         .iter()
         .map(|view| {
             let start = Instant::now();
-            let image = render(g, &view.camera, options);
+            let (image, _) = render_shown(g, wrapper, &view.camera, options);
             let render_seconds = start.elapsed().as_secs_f64();
             if let Some(dir) = out {
                 let stem =

@@ -10,4 +10,5 @@ pub mod fidelity;
 pub mod init;
 pub mod metrics;
 pub mod splat_op;
+pub mod synthesis;
 pub mod train;

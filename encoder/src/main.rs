@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use burn::tensor::Device;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
@@ -13,15 +13,23 @@ use pwgs_bitstream::Container;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::stream::attribute_hash;
+use pwgs_decoder::stream::wrap::{MAX_WIDTH, QuantizedSynthesis};
+use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
+use pwgs_decoder::wrapper::{SceneFrame, WrapperView, conditioning};
 use pwgs_encoder::compress::{Compressed, DEFAULT_QUALITY, MAX_QUALITY, QuantizerSettings, StreamContext, compress};
 use pwgs_encoder::evaluate::{MeanScore, ViewScore, evaluate};
 use pwgs_encoder::fidelity::{orbit_cameras, renders};
 use pwgs_encoder::init::initial_gaussians;
 use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
+use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
+use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
-use pwgs_encoder::train::{TrainConfig, TrainSummary, Trainer, train};
+use pwgs_encoder::synthesis::{QuantizationSample, choose_quantization};
+use pwgs_encoder::train::{TrainConfig, TrainSummary, Trainer, WdFeatures, WrapperTraining, train};
 use serde::Serialize;
 
 #[derive(Parser)]
@@ -138,6 +146,108 @@ struct EncodeArgs {
     /// Seed of every random choice in training.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Last iteration of densification (default: half of --iters, and with --wrapper at most
+    /// the split).
+    #[arg(long)]
+    densify_until: Option<u32>,
+    #[command(flatten)]
+    wrapper: WrapperArgs,
+}
+
+/// The perceptual wrapper's training options.
+#[derive(Args)]
+struct WrapperArgs {
+    /// Train the perceptual wrapper (stage 2: Wasserstein Distortion and the synthesis network f)
+    /// and store it in the stream.
+    #[arg(long)]
+    wrapper: bool,
+    /// Fraction of --iters after which stage 2 begins (the paper: 0.5; 0 = stage 2 only, e.g.
+    /// on a model from --init-ply).
+    #[arg(long, default_value_t = 0.5, requires = "wrapper", value_parser = parse_fraction)]
+    wrapper_split: f64,
+    /// Hidden channels of f.
+    #[arg(long, default_value_t = 16, requires = "wrapper",
+          value_parser = clap::value_parser!(u8).range(1..=MAX_WIDTH as i64))]
+    wrapper_width: u8,
+    /// Do not feed f the noise pyramid (ablation).
+    #[arg(long, requires = "wrapper")]
+    no_noise: bool,
+    /// Do not feed f the Plücker embeddings (ablation).
+    #[arg(long, requires = "wrapper")]
+    no_plucker: bool,
+    /// Seed of the noise pyramid (default: derived from --seed).
+    #[arg(long, requires = "wrapper")]
+    wrapper_seed: Option<u64>,
+    /// Adam learning rate of f.
+    #[arg(long, default_value_t = 2e-3, requires = "wrapper")]
+    wrapper_lr: f32,
+    /// log2 of WD's pooling width σ in pixels, the same everywhere (0 to 5).
+    #[arg(long, default_value_t = 3.0, requires = "wrapper")]
+    wd_log2_sigma: f64,
+    /// A per-pixel log2σ map instead: a grayscale PNG of the training views' size, log2σ =
+    /// 5 * gray / 255.
+    #[arg(long, requires = "wrapper", conflicts_with = "wd_log2_sigma")]
+    wd_log2_sigma_map: Option<PathBuf>,
+    /// Side of the square crop WD scores at each step.
+    #[arg(long, default_value_t = 128, requires = "wrapper")]
+    wd_crop: usize,
+    /// Features WD compares: VGG16 (the reference) or the image alone (cheap, no weights).
+    #[arg(long, value_enum, default_value = "vgg", requires = "wrapper")]
+    wd_features: FeatureKind,
+    /// A folder searched first for the VGG16 weights (then $PWGS_WEIGHTS_DIR and the cache).
+    #[arg(long, requires = "wrapper")]
+    weights: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum FeatureKind {
+    Vgg,
+    Pixels,
+}
+
+fn parse_fraction(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}` is not a fraction between 0 and 1")),
+    }
+}
+
+impl WrapperArgs {
+    /// Stage 2's settings for a run of `iterations`, or `None` without --wrapper.
+    fn training(&self, iterations: u32, seed: u64) -> Result<Option<WrapperTraining>> {
+        if !self.wrapper {
+            return Ok(None);
+        }
+        if self.wd_crop < MIN_SIDE {
+            bail!("--wd-crop must be at least {MIN_SIDE} (VGG's deepest layer needs it)");
+        }
+        let log2_sigma = match &self.wd_log2_sigma_map {
+            Some(path) => {
+                let gray = image::open(path).with_context(|| format!("cannot read {}", path.display()))?.to_luma8();
+                let values = gray.pixels().map(|p| LEVELS as f64 * f64::from(p.0[0]) / 255.0).collect();
+                Log2Sigma::Map(SigmaMap { height: gray.height() as usize, width: gray.width() as usize, values })
+            }
+            None => Log2Sigma::Constant(self.wd_log2_sigma),
+        };
+        log2_sigma.validate().map_err(|e| anyhow::anyhow!("WD log2 sigma: {e}"))?;
+        let features = match self.wd_features {
+            FeatureKind::Vgg => WdFeatures::Vgg(self.weights.iter().cloned().chain(default_dirs()).collect()),
+            FeatureKind::Pixels => WdFeatures::Pixels,
+        };
+        Ok(Some(WrapperTraining {
+            config: WrapperConfig {
+                width: usize::from(self.wrapper_width),
+                noise: !self.no_noise,
+                plucker: !self.no_plucker,
+                seed: self.wrapper_seed.unwrap_or_else(|| SplitMix64(seed ^ 0x5752_4150).next_u64()),
+            },
+            start: (iterations as f64 * self.wrapper_split).round() as u32,
+            log2_sigma,
+            crop: self.wd_crop,
+            learning_rate: self.wrapper_lr,
+            features,
+        }))
+    }
 }
 
 #[derive(Args)]
@@ -194,8 +304,21 @@ struct StreamSummary {
     sh_degree: u32,
     /// Bytes of each section, container overhead (tag, length, CRC) included.
     sections: Vec<(String, usize)>,
+    wrapper: Option<WrapperSummary>,
     attribute_sha256: String,
     seconds: f64,
+}
+
+/// The wrapper a stream carries.
+#[derive(Serialize)]
+struct WrapperSummary {
+    width: usize,
+    noise: bool,
+    plucker: bool,
+    seed: u64,
+    parameters: usize,
+    weight_step_log2: i8,
+    bias_step_log2: i8,
 }
 
 #[derive(Serialize)]
@@ -234,10 +357,11 @@ fn write_stream(
     g: &Gaussians,
     context: &StreamContext,
     quality: u8,
+    wrapper: Option<&QuantizedSynthesis>,
     path: &Path,
 ) -> Result<(Compressed, StreamSummary)> {
     let start = Instant::now();
-    let compressed = compress(g, &QuantizerSettings::for_quality(quality), context)?;
+    let compressed = compress(g, &QuantizerSettings::for_quality(quality), context, wrapper)?;
     pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
         .with_context(|| format!("cannot write {}", path.display()))?;
     let container = Container::parse(&compressed.bytes).expect("the encoder's own stream parses");
@@ -256,6 +380,15 @@ fn write_stream(
         sh_degree_in: g.sh_degree,
         sh_degree: header.sh_degree,
         sections,
+        wrapper: wrapper.map(|w| WrapperSummary {
+            width: w.config.width,
+            noise: w.config.noise,
+            plucker: w.config.plucker,
+            seed: w.config.seed,
+            parameters: w.values.len(),
+            weight_step_log2: w.weight_exponent,
+            bias_step_log2: w.bias_exponent,
+        }),
         attribute_sha256: attribute_hash(&compressed.decoded.gaussians),
         seconds: start.elapsed().as_secs_f64(),
     };
@@ -269,6 +402,29 @@ fn write_stream(
         summary.seconds
     );
     Ok((compressed, summary))
+}
+
+/// Quantizes f with steps chosen on renders of the first training views: the coarsest whose
+/// residual stays within a quarter of a gray level of the float network's.
+fn quantize_wrapper(
+    weights: &SynthesisWeights,
+    g: &Gaussians,
+    data: &Dataset,
+    frame: SceneFrame,
+    options: &RenderOptions,
+) -> QuantizedSynthesis {
+    let samples: Vec<QuantizationSample> = data
+        .train
+        .iter()
+        .take(2)
+        .map(|view| QuantizationSample {
+            base: render(g, &view.camera, options).data,
+            conditioning: conditioning(&weights.config, &view.camera, frame),
+            width: view.camera.width as usize,
+            height: view.camera.height as usize,
+        })
+        .collect();
+    choose_quantization(weights, &samples, 0.25 / 255.0)
 }
 
 fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
@@ -296,7 +452,7 @@ fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
     let gaussians = read_ply(ply)?;
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
     let context = StreamContext::from_gaussians(&gaussians, args.load.background);
-    let (compressed, stream) = write_stream(&gaussians, &context, args.quality, output)?;
+    let (compressed, stream) = write_stream(&gaussians, &context, args.quality, None, output)?;
     let ratio = ply_bytes as f64 / stream.bytes as f64;
     println!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), output.display(), stream.bytes);
     let mut orbit_psnr = Vec::new();
@@ -362,6 +518,13 @@ fn encode(args: EncodeArgs) -> Result<()> {
         None => initial_gaussians(&data, args.seed)?,
     };
     let mut config = TrainConfig::for_iterations(args.iters);
+    config.wrapper = args.wrapper.training(args.iters, args.seed)?;
+    if let Some(until) = args.densify_until {
+        config.densify_until = until;
+    }
+    if let Some(w) = &config.wrapper {
+        config.densify_until = config.densify_until.min(w.start);
+    }
     config.initial_sh_degree = initial.sh_degree;
     config.background = args.load.background;
     config.seed = args.seed;
@@ -399,21 +562,34 @@ fn encode(args: EncodeArgs) -> Result<()> {
         "trained {} iterations in {:.1} s: {} Gaussians",
         training.iterations, training.seconds, training.gaussians
     );
+    let n = data.normalization;
+    let frame = SceneFrame { center: n.center, scale: n.scale };
+    let options = RenderOptions { background: args.load.background, ..Default::default() };
+    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &gaussians, &data, frame, &options));
+    if let Some(w) = &wrapper {
+        println!(
+            "wrapper: {} parameters, steps 2^{} (weights) and 2^{} (biases)",
+            w.values.len(),
+            w.weight_exponent,
+            w.bias_exponent
+        );
+    }
     let stream = match &args.output {
         Some(path) => {
-            let n = data.normalization;
             let context =
                 StreamContext { center: n.center.to_array(), scale: n.scale, background: args.load.background };
-            Some(write_stream(&gaussians, &context, args.quality, path)?)
+            Some(write_stream(&gaussians, &context, args.quality, wrapper.as_ref(), path)?)
         }
         None => None,
     };
-    // What is evaluated is what a decoder shows: the decoded stream when there is one.
+    // What is evaluated is what a decoder shows: the decoded stream when there is one, and the
+    // wrapper with exactly its dequantized weights.
     let shown = stream.as_ref().map_or(&gaussians, |(c, _)| &c.decoded.gaussians);
+    let dequantized = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
+    let wrapper_view = dequantized.as_ref().map(|weights| WrapperView { weights, frame });
     let (views, mean) = match &args.eval {
         Some(dir) => {
-            let options = RenderOptions { background: args.load.background, ..Default::default() };
-            let views = evaluate(shown, &data, &options, Some(dir))?;
+            let views = evaluate(shown, wrapper_view, &data, &options, Some(dir))?;
             for v in &views {
                 println!("{:<24} PSNR {:6.2} dB  SSIM {:.4}  render {:.3} s", v.name, v.psnr, v.ssim, v.render_seconds);
             }

@@ -25,7 +25,7 @@ fn scene() -> pwgs_decoder::gaussians::Gaussians {
 fn default_stream_is_faithful_and_drops_what_the_scene_does_not_need() {
     let g = scene();
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
-    let c = compress(&g, &QuantizerSettings::default(), &context).unwrap();
+    let c = compress(&g, &QuantizerSettings::default(), &context, None).unwrap();
     assert_eq!(c.invisible, 300);
     assert_eq!(c.decoded.header.gaussian_count, 2700);
     assert_eq!(c.decoded.header.sh_degree, 2, "the empty third band is dropped");
@@ -39,7 +39,7 @@ fn default_stream_is_faithful_and_drops_what_the_scene_does_not_need() {
     let reference = render(&g, &camera, &options);
     let p = psnr(&render(&c.decoded.gaussians, &camera, &options), &reference);
     assert!(p > 35.0, "decoded render PSNR {p:.2} dB at the default quality");
-    let fine = compress(&g, &QuantizerSettings::for_quality(8), &context).unwrap();
+    let fine = compress(&g, &QuantizerSettings::for_quality(8), &context, None).unwrap();
     let p = psnr(&render(&fine.decoded.gaussians, &camera, &options), &reference);
     assert!(p > 40.0, "decoded render PSNR {p:.2} dB at quality 8");
     let raw = pwgs_decoder::ply::inria_ply_size(&g);
@@ -56,7 +56,7 @@ fn the_quality_knob_trades_size_for_fidelity() {
     let points: Vec<(usize, f64)> = [1u8, 5, 9]
         .iter()
         .map(|&q| {
-            let c = compress(&g, &QuantizerSettings::for_quality(q), &context).unwrap();
+            let c = compress(&g, &QuantizerSettings::for_quality(q), &context, None).unwrap();
             (c.bytes.len(), psnr(&render(&c.decoded.gaussians, &camera, &options), &reference))
         })
         .collect();
@@ -68,7 +68,7 @@ fn non_finite_models_are_refused() {
     let mut g = scene();
     g.log_scales[17][1] = f32::NAN;
     let context = StreamContext { center: [0.0; 3], scale: 1.0, background: [0.0; 3] };
-    let err = compress(&g, &QuantizerSettings::default(), &context).err().unwrap();
+    let err = compress(&g, &QuantizerSettings::default(), &context, None).err().unwrap();
     assert!(matches!(err, CompressError::NonFinite("scale")), "{err}");
 }
 
@@ -80,6 +80,6 @@ fn gaussians_sharing_a_cell_refine_the_grid() {
         g.means[i] = [0.1 + i as f32 * 1e-4, 0.0, 3.0];
     }
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
-    let c = compress(&g, &QuantizerSettings::default(), &context).unwrap();
+    let c = compress(&g, &QuantizerSettings::default(), &context, None).unwrap();
     assert_eq!(c.decoded.gaussians.len(), g.len());
 }

@@ -17,7 +17,7 @@ fn small_scene(dir: &std::path::Path) -> Dataset {
 }
 
 fn mean_psnr(g: &pwgs_decoder::gaussians::Gaussians, data: &Dataset) -> f64 {
-    MeanScore::of(&evaluate(g, data, &RenderOptions::default(), None).unwrap()).psnr
+    MeanScore::of(&evaluate(g, None, data, &RenderOptions::default(), None).unwrap()).psnr
 }
 
 /// The README's main job: the default generated scene, 600 iterations.
@@ -42,7 +42,7 @@ fn the_main_job_reaches_its_psnr() {
     let model = trainer.gaussians();
     let n = data.normalization;
     let context = StreamContext { center: n.center.to_array(), scale: n.scale, background: [0.0; 3] };
-    let stream = compress(&model, &QuantizerSettings::default(), &context).unwrap();
+    let stream = compress(&model, &QuantizerSettings::default(), &context, None).unwrap();
     let decoded = mean_psnr(&stream.decoded.gaussians, &data);
     eprintln!("decoded stream: {decoded:.2} dB, {} bytes", stream.bytes.len());
     assert!(decoded > after - 0.6, "the stream lost {:.2} dB", after - decoded);

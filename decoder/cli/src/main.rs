@@ -12,8 +12,10 @@ use pwgs_bitstream::Container;
 use pwgs_dataset::{LoadOptions, load_scene};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::stream::{self, Decoded, attribute_hash};
+use pwgs_decoder::wrapper::{WrapperView, render_shown, residual_picture};
 
 #[derive(Parser)]
 #[command(
@@ -68,6 +70,13 @@ struct DecodeArgs {
     /// Write the decoded Gaussians as an INRIA PLY.
     #[arg(long)]
     export_ply: Option<PathBuf>,
+    /// Show the base render only, without the perceptual wrapper the stream carries.
+    #[arg(long)]
+    no_wrapper: bool,
+    /// With --view: also write the wrapper's residual R as an image (0.5 + R: mid-gray where
+    /// the wrapper changes nothing).
+    #[arg(long, requires = "view", conflicts_with = "no_wrapper")]
+    residual: Option<PathBuf>,
     /// Print the SHA-256 of the decoded attributes (equal hashes: bit-identical decoding).
     #[arg(long)]
     hash: bool,
@@ -102,6 +111,21 @@ fn info(path: &Path) -> Result<()> {
     let (container, header) =
         stream::parse(&bytes).with_context(|| format!("{} is not a valid stream", path.display()))?;
     print_info(path, &bytes, &container, &header);
+    if let Some(section) = container.section(WRAPPER) {
+        let w = QuantizedSynthesis::read(section.payload, container.minor)
+            .with_context(|| format!("{}: bad wrapper section", path.display()))?;
+        let c = w.config;
+        println!(
+            "wrapper       width {}, noise {}, plücker {}, seed {:#018x}, steps 2^{} / 2^{} ({} parameters)",
+            c.width,
+            if c.noise { "on" } else { "off" },
+            if c.plucker { "on" } else { "off" },
+            c.seed,
+            w.weight_exponent,
+            w.bias_exponent,
+            w.values.len()
+        );
+    }
     Ok(())
 }
 
@@ -133,6 +157,10 @@ fn decode(args: DecodeArgs) -> Result<()> {
     let start = Instant::now();
     let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
     eprintln!("decoded {} Gaussians in {:.3} s", decoded.gaussians.len(), start.elapsed().as_secs_f64());
+    if args.residual.is_some() && decoded.wrapper.is_none() {
+        bail!("--residual: {} has no perceptual wrapper", path.display());
+    }
+    let wrapper = if args.no_wrapper { None } else { decoded.wrapper_view() };
     if args.hash {
         println!("{}", attribute_hash(&decoded.gaussians));
     }
@@ -144,25 +172,43 @@ fn decode(args: DecodeArgs) -> Result<()> {
         let text = std::fs::read_to_string(view).with_context(|| format!("cannot read {}", view.display()))?;
         let camera = parse_camera(&text).with_context(|| format!("{}: bad camera", view.display()))?;
         let out = args.output.as_deref().expect("clap requires -o");
-        render_to(&decoded, &camera, out)?;
+        render_to(&decoded, wrapper, &camera, out, args.residual.as_deref())?;
     }
     if let Some(scene) = &args.views {
         let out = args.output.as_deref().expect("clap requires -o");
-        render_dataset(&decoded, scene, args.split, args.downscale, out)?;
+        render_dataset(&decoded, wrapper, scene, args.split, args.downscale, out)?;
     }
     Ok(())
 }
 
-fn render_to(decoded: &Decoded, camera: &Camera, out: &Path) -> Result<()> {
+/// Renders one view (through the wrapper when given) to `out`, and the residual to `residual`.
+fn render_to(
+    decoded: &Decoded,
+    wrapper: Option<WrapperView>,
+    camera: &Camera,
+    out: &Path,
+    residual: Option<&Path>,
+) -> Result<()> {
     let options = RenderOptions { background: decoded.header.background, ..Default::default() };
     let start = Instant::now();
-    let image = render(&decoded.gaussians, camera, &options);
+    let (image, r) = render_shown(&decoded.gaussians, wrapper, camera, &options);
     image.save_png(out)?;
+    if let (Some(path), Some(r)) = (residual, r) {
+        residual_picture(&r, camera.width, camera.height).save_png(path)?;
+        eprintln!("wrote {}", path.display());
+    }
     eprintln!("wrote {} ({}x{}) in {:.3} s", out.display(), camera.width, camera.height, start.elapsed().as_secs_f64());
     Ok(())
 }
 
-fn render_dataset(decoded: &Decoded, scene: &Path, split: Split, downscale: u32, out: &Path) -> Result<()> {
+fn render_dataset(
+    decoded: &Decoded,
+    wrapper: Option<WrapperView>,
+    scene: &Path,
+    split: Split,
+    downscale: u32,
+    out: &Path,
+) -> Result<()> {
     let options = LoadOptions { downscale, background: decoded.header.background, ..Default::default() };
     let data = load_scene(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))?;
     let views: Vec<_> = match split {
@@ -176,7 +222,7 @@ fn render_dataset(decoded: &Decoded, scene: &Path, split: Split, downscale: u32,
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     for view in views {
         let stem = Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
-        render_to(decoded, &view.camera, &out.join(format!("{stem}.png")))?;
+        render_to(decoded, wrapper, &view.camera, &out.join(format!("{stem}.png")), None)?;
     }
     Ok(())
 }

@@ -43,6 +43,11 @@ pub struct Header {
 }
 
 impl Header {
+    /// The scene normalization as the wrapper's Plücker embeddings use it.
+    pub fn frame(&self) -> crate::wrapper::SceneFrame {
+        crate::wrapper::SceneFrame { center: glam::Vec3::from(self.center), scale: self.scale }
+    }
+
     pub fn write(&self) -> Vec<u8> {
         let mut w = FieldWriter::new();
         w.u8(self.base.code());

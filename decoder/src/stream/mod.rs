@@ -81,6 +81,13 @@ pub struct Decoded {
     pub wrapper: Option<SynthesisWeights>,
 }
 
+impl Decoded {
+    /// The wrapper with the stream's scene frame, if the stream carries one.
+    pub fn wrapper_view(&self) -> Option<crate::wrapper::WrapperView<'_>> {
+        self.wrapper.as_ref().map(|weights| crate::wrapper::WrapperView { weights, frame: self.header.frame() })
+    }
+}
+
 /// Parses, verifies and decodes a stream.
 pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     let (container, header) = parse(bytes)?;

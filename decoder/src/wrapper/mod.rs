@@ -62,3 +62,28 @@ pub fn apply(weights: &SynthesisWeights, base: &RgbImage, camera: &Camera, frame
 pub fn residual_picture(residual: &[f32], width: u32, height: u32) -> RgbImage {
     RgbImage { width, height, data: residual.iter().map(|r| (0.5 + r).clamp(0.0, 1.0)).collect() }
 }
+
+/// A trained wrapper and the scene frame of its stream.
+#[derive(Debug, Clone, Copy)]
+pub struct WrapperView<'a> {
+    pub weights: &'a SynthesisWeights,
+    pub frame: SceneFrame,
+}
+
+/// What a decoder shows for `camera`: the base render, passed through the wrapper when one is
+/// given (then the residual comes along).
+pub fn render_shown(
+    g: &crate::gaussians::Gaussians,
+    wrapper: Option<WrapperView>,
+    camera: &Camera,
+    options: &crate::raster::RenderOptions,
+) -> (RgbImage, Option<Vec<f32>>) {
+    let base = crate::raster::render(g, camera, options);
+    match wrapper {
+        Some(w) => {
+            let wrapped = apply(w.weights, &base, camera, w.frame);
+            (wrapped.image, Some(wrapped.residual))
+        }
+        None => (base, None),
+    }
+}

@@ -117,7 +117,8 @@ impl SynthesisWeights {
                 input[..3].copy_from_slice(&base[p * 3..p * 3 + 3]);
                 input[3..].copy_from_slice(&conditioning[p * k..(p + 1) * k]);
                 for (j, h) in hidden.iter_mut().enumerate() {
-                    *h = dot(&self.hidden[j * input.len()..(j + 1) * input.len()], &input, self.hidden_bias[j]).max(0.0);
+                    *h =
+                        dot(&self.hidden[j * input.len()..(j + 1) * input.len()], &input, self.hidden_bias[j]).max(0.0);
                 }
                 for (c, o) in out.iter_mut().enumerate() {
                     let w = self.config.width;

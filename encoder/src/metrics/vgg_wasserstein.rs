@@ -34,18 +34,25 @@ pub struct WdTarget {
 
 /// WD with VGG16 features on one device.
 pub struct VggWasserstein {
-    vgg: Vgg16,
+    /// `None`: the cheap variant that compares the normalized image's 3 scales only.
+    vgg: Option<Vgg16>,
 }
 
 impl VggWasserstein {
     /// Loads the VGG16 weights from the first of `dirs` holding them.
     pub fn load(dirs: &[PathBuf], device: &Device) -> Result<Self, WeightsError> {
-        Ok(Self { vgg: Vgg16::load(dirs, device)? })
+        Ok(Self { vgg: Some(Vgg16::load(dirs, device)?) })
+    }
+
+    /// WD on pixels alone: the normalized image at the 3 scales, no VGG features. Much cheaper
+    /// and needs no weights, but blind to texture beyond local color statistics.
+    pub fn pixels_only() -> Self {
+        Self { vgg: None }
     }
 
     /// The 16 feature arrays of `x` [N, 3, H, W] in [0, 1]: the normalized image, then
-    /// relu1_2 .. relu5_3 at each of the 3 scales. Differentiable in `x`. Panics if a side is
-    /// below [`MIN_SIDE`].
+    /// relu1_2 .. relu5_3 at each of the 3 scales (pixels only: the normalized image at each
+    /// scale). Differentiable in `x`. Panics if a side is below [`MIN_SIDE`].
     pub fn features(&self, x: Tensor<4>) -> Vec<Tensor<4>> {
         let [_, _, height, width] = x.dims();
         assert!(
@@ -55,7 +62,11 @@ impl VggWasserstein {
         let mut scale = imagenet_normalize(x);
         let mut features = vec![scale.clone()];
         for s in 0..IMAGE_SCALES {
-            features.extend(self.vgg.features(scale.clone(), Pooling::Average));
+            match &self.vgg {
+                Some(vgg) => features.extend(vgg.features(scale.clone(), Pooling::Average)),
+                None if s > 0 => features.push(scale.clone()),
+                None => {}
+            }
             if s + 1 < IMAGE_SCALES {
                 scale = lowpass(scale, 2);
             }

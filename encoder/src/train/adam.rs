@@ -29,7 +29,12 @@ pub struct LearningRates {
 }
 
 /// Updates the moments with `grad` and returns the bias-corrected Adam direction.
-fn direction<const D: usize>(grad: Tensor<D>, first: &mut Tensor<D>, second: &mut Tensor<D>, step: u32) -> Tensor<D> {
+pub fn direction<const D: usize>(
+    grad: Tensor<D>,
+    first: &mut Tensor<D>,
+    second: &mut Tensor<D>,
+    step: u32,
+) -> Tensor<D> {
     *first = first.clone() * BETA1 + grad.clone() * (1.0 - BETA1);
     *second = second.clone() * BETA2 + grad.clone() * grad * (1.0 - BETA2);
     let first_scale = 1.0 / (1.0 - BETA1.powi(step as i32));

@@ -3,12 +3,17 @@
 //! time, loss 0.8 L1 + 0.2 (1 - SSIM), adaptive density control with opacity resets) on the
 //! rasterizer op of [`crate::splat_op`].
 //!
+//! With a [`WrapperTraining`] configured, stage 2 (from its start iteration) swaps the
+//! distortion for Wasserstein Distortion of the wrapped render and trains the synthesis
+//! network f jointly ([`wrapper_stage`]).
+//!
 //! Training never writes a non-finite value into the model: after every step the parameters
 //! are checked, and a step that produced NaN or infinity is undone (see [`Trainer::step`]).
 
 pub mod adam;
 pub mod densify;
 pub mod params;
+pub mod wrapper_stage;
 
 use std::time::Instant;
 
@@ -24,6 +29,10 @@ use crate::splat_op::{SplatView, render};
 use adam::{LearningRates, Moments};
 use densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset_opacity};
 use params::{PARAM_NAMES, SplatParams, tensor_values};
+use pwgs_decoder::wrapper::SceneFrame;
+use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
+use wrapper_stage::WrapperStage;
+pub use wrapper_stage::{WdFeatures, WrapperTraining};
 
 /// Training settings. [`TrainConfig::for_iterations`] gives the 3DGS defaults with the
 /// schedule fitted to a run length.
@@ -53,6 +62,8 @@ pub struct TrainConfig {
     pub densify: DensifyConfig,
     pub background: [f32; 3],
     pub seed: u64,
+    /// Stage 2 with the perceptual wrapper; `None` trains the base alone.
+    pub wrapper: Option<WrapperTraining>,
 }
 
 impl TrainConfig {
@@ -78,6 +89,7 @@ impl TrainConfig {
             densify: DensifyConfig::default(),
             background: [0.0; 3],
             seed: 0,
+            wrapper: None,
         }
     }
 
@@ -126,7 +138,10 @@ pub struct Trainer {
     views: Vec<TrainView>,
     order: Vec<usize>,
     extent: f32,
+    frame: SceneFrame,
     rng: SplitMix64,
+    /// Stage 2's state, from its first iteration on.
+    wrapper: Option<WrapperStage>,
     device: Device,
     /// Next iteration, from 0.
     pub iteration: u32,
@@ -165,7 +180,9 @@ impl Trainer {
             views,
             order: Vec::new(),
             extent: dataset.normalization.scale,
+            frame: SceneFrame { center: dataset.normalization.center, scale: dataset.normalization.scale },
             rng: SplitMix64(config.seed),
+            wrapper: None,
             device,
             iteration: 0,
             failed_steps: 0,
@@ -192,6 +209,7 @@ impl Trainer {
     /// row training stops with an error naming the parameter, and the model holds the last
     /// good state.
     pub fn step(&mut self) -> Result<StepReport> {
+        self.start_wrapper_if_due()?;
         let it = self.iteration;
         let view_index = self.next_view();
         let camera = self.views[view_index].camera;
@@ -218,13 +236,16 @@ impl Trainer {
             probe.clone(),
             view,
         );
-        let target = target.autodiff();
-        let l1 = (image.clone() - target.clone()).abs().mean();
-        let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
-        let structural = ssim(to_nchw(image.clone()), to_nchw(target.clone()), SsimConvention::ZeroPadded);
-        let w = self.config.ssim_weight;
-        let loss = l1 * (1.0 - w) + (structural.neg() + 1.0) * w;
-        let mse = (image.inner() - target.inner()).powi_scalar(2).mean();
+        let (loss, shown, wrapper_params) = match &mut self.wrapper {
+            Some(stage) => {
+                let [h, w, _] = image.dims();
+                let crop = (self.rng.next_u64() % stage.crop_count(w, h) as u64) as usize;
+                let (loss, shown, params) = stage.loss(view_index, crop, image, &target);
+                (loss, shown, Some(params))
+            }
+            None => (self.base_loss(image.clone(), target.clone().autodiff()), image, None),
+        };
+        let mse = (shown.inner() - target).powi_scalar(2).mean();
         let grads = loss.backward();
         let loss_value = tensor_values(loss.inner())[0];
         let psnr = -10.0 * tensor_values(mse)[0].log10();
@@ -247,7 +268,15 @@ impl Trainer {
 
         let lr = self.config.learning_rates(it, self.extent);
         let updated = self.moments.step(self.params.clone(), g, &lr, it + 1);
-        if let Some(bad) = non_finite_parameter(&updated, loss_value) {
+        let wrapper_grad = wrapper_params.map(|p| p.grad(&grads).unwrap_or_else(|| p.inner().zeros_like()));
+        let mut bad = non_finite_parameter(&updated, loss_value);
+        if bad.is_none()
+            && let (Some(stage), Some(grad)) = (&mut self.wrapper, wrapper_grad)
+            && stage.update(grad).is_none()
+        {
+            bad = Some("the synthesis network");
+        }
+        if let Some(bad) = bad {
             // `self.params` still holds the state before this step.
             self.moments = Moments::zeros_like(&self.params);
             self.failed_steps += 1;
@@ -266,6 +295,33 @@ impl Trainer {
         self.iteration += 1;
         let densified = self.control_density();
         Ok(StepReport { loss: loss_value, psnr, gaussians: self.params.len(), densified })
+    }
+
+    /// The base's own objective: (1 - w) L1 + w (1 - SSIM).
+    fn base_loss(&self, image: Tensor<3>, target: Tensor<3>) -> Tensor<1> {
+        let l1 = (image.clone() - target.clone()).abs().mean();
+        let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
+        let structural = ssim(to_nchw(image), to_nchw(target), SsimConvention::ZeroPadded);
+        let w = self.config.ssim_weight;
+        l1 * (1.0 - w) + (structural.neg() + 1.0) * w
+    }
+
+    /// Enters stage 2 at its first iteration.
+    fn start_wrapper_if_due(&mut self) -> Result<()> {
+        if let Some(settings) = &self.config.wrapper
+            && self.wrapper.is_none()
+            && self.iteration >= settings.start
+        {
+            let cameras: Vec<_> = self.views.iter().map(|v| v.camera).collect();
+            self.wrapper =
+                Some(WrapperStage::new(settings.clone(), &cameras, self.frame, &mut self.rng, &self.device)?);
+        }
+        Ok(())
+    }
+
+    /// The synthesis network's current (float) weights, once stage 2 has begun.
+    pub fn synthesis(&self) -> Option<SynthesisWeights> {
+        self.wrapper.as_ref().map(WrapperStage::weights)
     }
 
     /// Densification, pruning and opacity resets on their schedule.
