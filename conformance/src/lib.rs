@@ -7,8 +7,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::stream::{self, attribute_hash};
+use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
+use pwgs_decoder::wrapper::render_shown;
 use serde::Deserialize;
 
 /// Largest difference of an 8-bit channel value allowed anywhere.
@@ -23,6 +25,9 @@ struct Expected {
     gaussians: u32,
     sh_degree: u32,
     attribute_sha256: String,
+    /// Whether the stream carries a perceptual wrapper (renders then go through it).
+    #[serde(default)]
+    wrapper: bool,
     renders: Vec<ExpectedRender>,
 }
 
@@ -73,11 +78,14 @@ pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
     if hash != expected.attribute_sha256 {
         bail!("decoded attributes hash to {hash}, expected {}", expected.attribute_sha256);
     }
+    if decoded.wrapper.is_some() != expected.wrapper {
+        bail!("wrapper present: {}, expected {}", decoded.wrapper.is_some(), expected.wrapper);
+    }
     let options = RenderOptions { background: decoded.header.background, ..Default::default() };
     let mut checks = Vec::new();
     for r in &expected.renders {
         let camera = parse_camera(&std::fs::read_to_string(dir.join(&r.camera))?)?;
-        let ours = render(&decoded.gaussians, &camera, &options).to_rgb8();
+        let ours = render_shown(&decoded.gaussians, decoded.wrapper_view(), &camera, &options).0.to_rgb8();
         let reference = image::open(dir.join(&r.image))?.to_rgb8();
         if ours.dimensions() != reference.dimensions() {
             bail!("{}: rendered {:?}, expected {:?}", r.image, ours.dimensions(), reference.dimensions());
@@ -91,4 +99,33 @@ pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
         checks.push(RenderCheck { image: r.image.clone(), max_difference, within_one });
     }
     Ok(checks)
+}
+
+#[derive(Deserialize)]
+struct PinnedPyramid {
+    seed: u64,
+    width: usize,
+    height: usize,
+    sha256: String,
+}
+
+/// Checks the decoder's noise pyramids against `noise_pyramids.json` (SPEC.md section 11.1:
+/// they are bit-normative). Returns how many were checked.
+pub fn check_noise_pyramids() -> Result<usize> {
+    let path = vectors_dir().join("noise_pyramids.json");
+    let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+    let pinned: Vec<PinnedPyramid> = serde_json::from_str(&text).context("noise_pyramids.json")?;
+    for p in &pinned {
+        let hash = pyramid_sha256(&noise_pyramid(p.seed, p.width, p.height));
+        if hash != p.sha256 {
+            bail!(
+                "noise pyramid of seed {} at {}x{} hashes to {hash}, expected {}",
+                p.seed,
+                p.width,
+                p.height,
+                p.sha256
+            );
+        }
+    }
+    Ok(pinned.len())
 }

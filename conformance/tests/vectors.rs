@@ -37,3 +37,9 @@ fn a_corrupted_vector_fails() {
     std::fs::remove_dir_all(&tmp).unwrap();
     assert!(err.contains("hash"), "{err}");
 }
+
+#[test]
+fn noise_pyramids_match_the_pinned_hashes() {
+    let n = pwgs_conformance::check_noise_pyramids().unwrap_or_else(|e| panic!("{e:#}"));
+    assert!(n >= 4, "only {n} pinned pyramids");
+}

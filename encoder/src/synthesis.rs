@@ -9,7 +9,7 @@
 use burn::tensor::activation::relu;
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::{ConvOptions, PadMode};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor, TensorData, s};
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::wrap::{MAX_EXPONENT, MIN_EXPONENT, QuantizedSynthesis};
 use pwgs_decoder::wrapper::synthesis::{RESIDUAL_TAPS, SynthesisWeights, WrapperConfig};
@@ -34,7 +34,7 @@ pub fn forward(config: &WrapperConfig, flat: Tensor<1>, input: Tensor<2>, height
     let (w, cin) = (config.width, config.input_channels());
     let mut at = 0;
     let mut take = |n: usize| {
-        let t = flat.clone().slice([at..at + n]);
+        let t = flat.clone().slice(s![at..at + n]);
         at += n;
         t
     };

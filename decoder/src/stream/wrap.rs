@@ -1,4 +1,4 @@
-//! The `WRAP` section (SPEC.md section 8.4): the perceptual wrapper's configuration, the noise
+//! The `WRAP` section (SPEC.md section 11.4): the perceptual wrapper's configuration, the noise
 //! seed and the synthesis network's weights, quantized to power-of-two steps (one for weights,
 //! one for biases) and written as signed varints. Dequantization is exact in binary32, so the
 //! encoder can evaluate with precisely the weights every decoder will use.

@@ -1,4 +1,4 @@
-//! The perceptual wrapper on the decoder side (SPEC.md section 8): the common-randomness noise
+//! The perceptual wrapper on the decoder side (SPEC.md section 11): the common-randomness noise
 //! pyramid, Plücker embeddings and the synthesis network f, which turn a base render I_base
 //! into the image shown, clamp(I_base + f(I_base, noise, Plücker), 0, 1).
 

@@ -1,4 +1,4 @@
-//! The common randomness of the perceptual wrapper (SPEC.md section 8.1): a pyramid of
+//! The common randomness of the perceptual wrapper (SPEC.md section 11.1): a pyramid of
 //! i.i.d. standard-normal grids C_0..C_7, C_i of ceil(H/2^i) x ceil(W/2^i), each upsampled
 //! bilinearly to H x W. Encoder and decoder regenerate it from the stream's seed, so it costs
 //! no bits; it is normative, bit for bit, which is why nothing here calls a platform math
@@ -195,7 +195,7 @@ mod tests {
         assert_ne!(grid_sample(1, 0, 0, 0), grid_sample(1, 1, 0, 0));
     }
 
-    /// The pyramid is normative: these hashes must never change (SPEC.md section 8.1 lists them).
+    /// The pyramid is normative: these hashes must never change (SPEC.md section 11.1 lists them).
     #[test]
     fn pinned_pyramids() {
         for (seed, width, height, hash) in PINNED_PYRAMIDS {

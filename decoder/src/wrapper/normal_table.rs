@@ -1,4 +1,4 @@
-//! The positive half of the normative standard-normal table (SPEC.md section 8.1): entry k
+//! The positive half of the normative standard-normal table (SPEC.md section 11.1): entry k
 //! is the binary32 value nearest to the standard normal quantile at (2048 + k + 0.5) / 4096,
 //! written as bit patterns so that no compiler or library rounds it again. Generated once;
 //! `noise::tests::normal_table_is_the_quantile_function` checks every entry against a
