@@ -90,3 +90,46 @@ fn bad_input_is_a_clear_error_and_leaves_outputs_alone() {
     }
     assert_eq!(std::fs::read(&existing).unwrap(), b"keep me");
 }
+
+fn wrapped_vector(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance/vectors/generated-3dgs-wrapped").join(name)
+}
+
+#[test]
+fn wrapped_stream_renders_with_and_without_the_wrapper_and_its_residual() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stream = wrapped_vector("stream.pwb");
+    let s = stream.to_str().unwrap();
+    let camera = wrapped_vector("view_opencv.json");
+    let c = camera.to_str().unwrap();
+    let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let read = |name: &str| image::open(tmp.path().join(name)).unwrap().to_rgb8();
+    for threads in ["1", "3"] {
+        let out = format!("wrapped_{threads}.png");
+        let residual = format!("residual_{threads}.png");
+        stdout(&pwdec(&[s, "--view", c, "-o", &path(&out), "--residual", &path(&residual), "--threads", threads]));
+    }
+    stdout(&pwdec(&[s, "--view", c, "-o", &path("base.png"), "--no-wrapper"]));
+    // Thread counts do not change a pixel; the wrapper does.
+    assert_eq!(read("wrapped_1.png"), read("wrapped_3.png"));
+    assert_eq!(read("residual_1.png"), read("residual_3.png"));
+    let (wrapped, base, residual) = (read("wrapped_1.png"), read("base.png"), read("residual_1.png"));
+    assert_ne!(wrapped, base);
+    // Where nothing clamps (the base render itself may exceed 1), wrapped = base + (residual -
+    // 0.5), up to 8-bit rounding.
+    let mut checked = 0;
+    for ((w, b), r) in wrapped.as_raw().iter().zip(base.as_raw()).zip(residual.as_raw()) {
+        let predicted = i32::from(*b) + i32::from(*r) - 128;
+        if (3..253).contains(&predicted) && (3..253).contains(r) && (3..253).contains(b) {
+            assert!((i32::from(*w) - predicted).abs() <= 2, "wrapped {w}, base {b}, residual {r}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "only {checked} values checked");
+    let info = stdout(&pwdec(&["info", s]));
+    assert!(info.contains("WRAP") && info.contains("width 16, noise on, plücker on"), "{info}");
+    // --residual needs a wrapper.
+    let plain = vector("stream.pwb");
+    let out = pwdec(&[plain.to_str().unwrap(), "--view", c, "-o", &path("x.png"), "--residual", &path("r.png")]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no perceptual wrapper"));
+}
