@@ -53,7 +53,8 @@ pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
 }
 
 /// Renders every test view as a decoder shows it (through the wrapper when given), optionally
-/// saving `<out>/<name>.png`, and scores it with PSNR and SSIM.
+/// saving `<out>/<name>.png` and the ground truth as loaded (undistorted, downscaled) as
+/// `<out>/gt/<name>.png` for `pweval`, and scores it with PSNR and SSIM.
 pub fn evaluate(
     g: &Gaussians,
     wrapper: Option<WrapperView>,
@@ -62,7 +63,8 @@ pub fn evaluate(
     out: Option<&Path>,
 ) -> Result<Vec<ViewScore>> {
     if let Some(dir) = out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let gt = dir.join("gt");
+        std::fs::create_dir_all(&gt).with_context(|| format!("cannot create {}", gt.display()))?;
     }
     data.test
         .iter()
@@ -74,6 +76,7 @@ pub fn evaluate(
                 let stem =
                     Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
                 image.save_png(&dir.join(format!("{stem}.png")))?;
+                view.image.save_png(&dir.join("gt").join(format!("{stem}.png")))?;
             }
             Ok(ViewScore {
                 name: view.name.clone(),

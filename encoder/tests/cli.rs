@@ -29,6 +29,7 @@ fn trains_evaluates_and_writes_outputs() {
     assert_eq!(report["views"].as_array().unwrap().len(), 2);
     assert!(report["mean"]["psnr"].as_f64().unwrap() > 8.0);
     assert!(std::path::Path::new(&dir("eval")).join("view_008.png").is_file());
+    assert!(std::path::Path::new(&dir("eval")).join("gt/view_008.png").is_file());
     let model = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("model.ply"))).unwrap();
     assert_eq!(model.gaussians.len() as u64, report["training"]["gaussians"].as_u64().unwrap());
     // Resuming from the exported model works.
