@@ -150,6 +150,11 @@ struct EncodeArgs {
     /// the split).
     #[arg(long)]
     densify_until: Option<u32>,
+    /// Position learning rate at the start and the end of the run, times the scene extent
+    /// (`start,end`; default 1.6e-4,1.6e-6 as 3DGS). To continue a model from --init-ply where
+    /// its schedule ended, give the end value twice.
+    #[arg(long, value_parser = parse_rate_pair)]
+    position_lr: Option<[f32; 2]>,
     #[command(flatten)]
     wrapper: WrapperArgs,
 }
@@ -203,6 +208,14 @@ struct WrapperArgs {
 enum FeatureKind {
     Vgg,
     Pixels,
+}
+
+fn parse_rate_pair(s: &str) -> Result<[f32; 2], String> {
+    let parts: Option<Vec<f32>> = s.split(',').map(|p| p.trim().parse::<f32>().ok()).collect();
+    match parts.as_deref() {
+        Some(&[a, b]) if a > 0.0 && b > 0.0 && a.is_finite() && b.is_finite() => Ok([a, b]),
+        _ => Err(format!("`{s}` is not two positive rates start,end")),
+    }
 }
 
 fn parse_fraction(s: &str) -> Result<f64, String> {
@@ -521,6 +534,9 @@ fn encode(args: EncodeArgs) -> Result<()> {
     config.wrapper = args.wrapper.training(args.iters, args.seed)?;
     if let Some(until) = args.densify_until {
         config.densify_until = until;
+    }
+    if let Some(rates) = args.position_lr {
+        config.lr_position = rates;
     }
     if let Some(w) = &config.wrapper {
         config.densify_until = config.densify_until.min(w.start);

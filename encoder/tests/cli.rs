@@ -48,6 +48,7 @@ fn bad_input_is_a_clear_error() {
         (vec![missing.to_str().unwrap()], "does not exist"),
         (vec!["generate-scene", tmp.path().join("s").to_str().unwrap(), "--width", "0"], "image size 0x120"),
         (vec![tmp.path().to_str().unwrap(), "--background", "purple"], "purple"),
+        (vec![scene, "--position-lr", "1e-4"], "two positive rates"),
         (vec![tmp.path().to_str().unwrap()], "no supported scene"),
         (vec![scene, "--init-ply", missing.to_str().unwrap()], "missing"),
         (vec![scene, "--downscale", "0"], "downscale"),
