@@ -5,6 +5,7 @@ use glam::{Mat3, Vec3};
 
 use crate::camera::{Camera, Intrinsics};
 use crate::gaussians::{Gaussians, sh_coeff_count};
+use crate::wrapper::noise::{GOLDEN, mix64};
 
 /// splitmix64: tiny, fast, deterministic on every platform.
 #[derive(Debug, Clone)]
@@ -12,11 +13,8 @@ pub struct SplitMix64(pub u64);
 
 impl SplitMix64 {
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0 = self.0.wrapping_add(GOLDEN);
+        mix64(self.0)
     }
 
     /// Uniform in [lo, hi).

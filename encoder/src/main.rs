@@ -580,7 +580,7 @@ fn encode(args: EncodeArgs) -> Result<()> {
         training.iterations, training.seconds, training.gaussians
     );
     let n = data.normalization;
-    let frame = SceneFrame { center: n.center, scale: n.scale };
+    let frame = n.frame();
     let options = RenderOptions { background: args.load.background, ..Default::default() };
     let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &gaussians, &data, frame, &options));
     if let Some(w) = &wrapper {

@@ -4,6 +4,7 @@
 
 use glam::Vec3;
 use pwgs_decoder::camera::Camera;
+use pwgs_decoder::wrapper::SceneFrame;
 
 /// Maps world coordinates to normalized ones: `(p - center) / scale`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -28,6 +29,11 @@ impl SceneNormalization {
 
     pub fn normalize(&self, p: Vec3) -> Vec3 {
         (p - self.center) / self.scale
+    }
+
+    /// The same normalization as the perceptual wrapper's Plücker embeddings take it.
+    pub fn frame(&self) -> SceneFrame {
+        SceneFrame { center: self.center, scale: self.scale }
     }
 }
 

@@ -180,7 +180,7 @@ impl Trainer {
             views,
             order: Vec::new(),
             extent: dataset.normalization.scale,
-            frame: SceneFrame { center: dataset.normalization.center, scale: dataset.normalization.scale },
+            frame: dataset.normalization.frame(),
             rng: SplitMix64(config.seed),
             wrapper: None,
             device,
