@@ -83,6 +83,11 @@ struct DecodeArgs {
     /// Worker threads (default: all cores). The output does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
+    /// Refuse views larger than this many pixels. A wrapped render peaks at about 50 bytes per
+    /// pixel plus its tile lists, which grow with the scene (measured on a 7070-Gaussian stream
+    /// at 4096 x 3072), so the default, 8192 x 8192, needs some 3 GiB or more.
+    #[arg(long, default_value_t = 1 << 26)]
+    max_pixels: u64,
 }
 
 fn main() -> ExitCode {
@@ -172,11 +177,12 @@ fn decode(args: DecodeArgs) -> Result<()> {
         let text = std::fs::read_to_string(view).with_context(|| format!("cannot read {}", view.display()))?;
         let camera = parse_camera(&text).with_context(|| format!("{}: bad camera", view.display()))?;
         let out = args.output.as_deref().expect("clap requires -o");
-        render_to(&decoded, wrapper, &camera, out, args.residual.as_deref())?;
+        render_to(&decoded, wrapper, &camera, args.max_pixels, out, args.residual.as_deref())?;
     }
     if let Some(scene) = &args.views {
         let out = args.output.as_deref().expect("clap requires -o");
-        render_dataset(&decoded, wrapper, scene, args.split, args.downscale, out)?;
+        let dataset = DatasetViews { scene, split: args.split, downscale: args.downscale };
+        render_dataset(&decoded, wrapper, &dataset, args.max_pixels, out)?;
     }
     Ok(())
 }
@@ -186,9 +192,19 @@ fn render_to(
     decoded: &Decoded,
     wrapper: Option<WrapperView>,
     camera: &Camera,
+    max_pixels: u64,
     out: &Path,
     residual: Option<&Path>,
 ) -> Result<()> {
+    let pixels = u64::from(camera.width) * u64::from(camera.height);
+    if pixels > max_pixels {
+        bail!(
+            "{}: the view is {}x{} = {pixels} pixels, more than --max-pixels {max_pixels}",
+            out.display(),
+            camera.width,
+            camera.height
+        );
+    }
     let options = RenderOptions { background: decoded.header.background, ..Default::default() };
     let start = Instant::now();
     let (image, r) = render_shown(&decoded.gaussians, wrapper, camera, &options);
@@ -201,14 +217,21 @@ fn render_to(
     Ok(())
 }
 
+/// The views of `pwdec --views`.
+struct DatasetViews<'a> {
+    scene: &'a Path,
+    split: Split,
+    downscale: u32,
+}
+
 fn render_dataset(
     decoded: &Decoded,
     wrapper: Option<WrapperView>,
-    scene: &Path,
-    split: Split,
-    downscale: u32,
+    views: &DatasetViews,
+    max_pixels: u64,
     out: &Path,
 ) -> Result<()> {
+    let DatasetViews { scene, split, downscale } = *views;
     let options = LoadOptions { downscale, background: decoded.header.background, ..Default::default() };
     let data = load_scene(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))?;
     let views: Vec<_> = match split {
@@ -222,7 +245,7 @@ fn render_dataset(
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     for view in views {
         let stem = Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
-        render_to(decoded, wrapper, &view.camera, &out.join(format!("{stem}.png")), None)?;
+        render_to(decoded, wrapper, &view.camera, max_pixels, &out.join(format!("{stem}.png")), None)?;
     }
     Ok(())
 }

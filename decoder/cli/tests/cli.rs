@@ -68,6 +68,11 @@ fn bad_input_is_a_clear_error_and_leaves_outputs_alone() {
     let future = write("future.pwb", &future);
     let text = write("text.pwb", b"hello");
     let camera = write("camera.json", b"{\"width\": 10, \"height\": 10}");
+    let huge = write(
+        "huge.json",
+        b"{\"width\": 65535, \"height\": 65535, \"fx\": 1e4, \"fy\": 1e4, \"cx\": 32767, \"cy\": 32767, \
+          \"camera_to_world\": [[1,0,0,0],[0,1,0,0],[0,0,1,-5],[0,0,0,1]]}",
+    );
     let good_stream = write("good.pwb", &good);
     let existing = write("existing.png", b"keep me");
     let missing = tmp.path().join("missing.pwb");
@@ -81,6 +86,7 @@ fn bad_input_is_a_clear_error_and_leaves_outputs_alone() {
         (vec![good_stream.as_str()], "nothing to do"),
         (vec![good_stream.as_str(), "--view", camera.as_str(), "-o", existing.as_str()], "camera.json"),
         (vec![corrupt.as_str(), "--view", camera.as_str(), "-o", existing.as_str()], "CRC"),
+        (vec![good_stream.as_str(), "--view", huge.as_str(), "-o", existing.as_str()], "--max-pixels"),
     ] {
         let out = pwdec(&args);
         let stderr = String::from_utf8_lossy(&out.stderr);

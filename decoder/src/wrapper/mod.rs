@@ -11,8 +11,9 @@ use glam::Vec3;
 
 use crate::camera::Camera;
 use crate::rgb_image::RgbImage;
-use noise::{NOISE_LEVELS, noise_pyramid};
-use plucker::{PLUCKER_CHANNELS, plucker_embeddings};
+use noise::{NOISE_LEVELS, NoiseGrids};
+use plucker::{PLUCKER_CHANNELS, PluckerRays};
+use rayon::prelude::*;
 use synthesis::{SynthesisWeights, WrapperConfig};
 
 /// The scene normalization the Plücker moments are taken in (the stream header's).
@@ -22,22 +23,63 @@ pub struct SceneFrame {
     pub scale: f32,
 }
 
-/// The per-pixel inputs of f after the base RGB, pixel-interleaved: the 8 noise levels, then
-/// the 6 Plücker channels, each group only when the configuration feeds it.
-pub fn conditioning(config: &WrapperConfig, camera: &Camera, frame: SceneFrame) -> Vec<f32> {
-    let (width, height) = (camera.width as usize, camera.height as usize);
-    let noise = config.noise.then(|| noise_pyramid(config.seed, width, height));
-    let plucker = config.plucker.then(|| plucker_embeddings(camera, frame.center, frame.scale));
-    match (noise, plucker) {
-        (Some(n), Some(p)) => n
-            .chunks_exact(NOISE_LEVELS)
-            .zip(p.chunks_exact(PLUCKER_CHANNELS))
-            .flat_map(|(a, b)| a.iter().chain(b).copied())
-            .collect(),
-        (Some(n), None) => n,
-        (None, Some(p)) => p,
-        (None, None) => Vec::new(),
+/// The per-pixel inputs of f after the base RGB for one view: the 8 noise levels, then the 6
+/// Plücker channels, each group only when the configuration feeds it. Produced row by row.
+#[derive(Debug, Clone)]
+pub struct Conditioning {
+    noise: Option<NoiseGrids>,
+    plucker: Option<PluckerRays>,
+    /// Values per pixel ([`WrapperConfig::conditioning_channels`]).
+    channels: usize,
+    width: usize,
+    height: usize,
+}
+
+impl Conditioning {
+    pub fn new(config: &WrapperConfig, camera: &Camera, frame: SceneFrame) -> Self {
+        let (width, height) = (camera.width as usize, camera.height as usize);
+        Self {
+            noise: config.noise.then(|| NoiseGrids::new(config.seed, width, height)),
+            plucker: config.plucker.then(|| PluckerRays::new(camera, frame.center, frame.scale)),
+            channels: config.conditioning_channels(),
+            width,
+            height,
+        }
     }
+
+    /// Row `y` into `row` (`width * channels` values, pixel-interleaved).
+    pub fn row(&self, y: usize, row: &mut [f32]) {
+        match (&self.noise, &self.plucker) {
+            (Some(noise), Some(plucker)) => {
+                let mut n = vec![0.0f32; self.width * NOISE_LEVELS];
+                let mut p = vec![0.0f32; self.width * PLUCKER_CHANNELS];
+                noise.row(y, &mut n);
+                plucker.row(y, &mut p);
+                let pixels = n.chunks_exact(NOISE_LEVELS).zip(p.chunks_exact(PLUCKER_CHANNELS));
+                for (out, (a, b)) in row.chunks_exact_mut(NOISE_LEVELS + PLUCKER_CHANNELS).zip(pixels) {
+                    out[..NOISE_LEVELS].copy_from_slice(a);
+                    out[NOISE_LEVELS..].copy_from_slice(b);
+                }
+            }
+            (Some(noise), None) => noise.row(y, row),
+            (None, Some(plucker)) => plucker.row(y, row),
+            (None, None) => {}
+        }
+    }
+
+    /// Every row, one after the other (what training feeds f as a tensor).
+    pub fn image(&self) -> Vec<f32> {
+        let mut out = vec![0.0f32; self.width * self.height * self.channels];
+        if self.channels > 0 {
+            out.par_chunks_mut(self.width * self.channels).enumerate().for_each(|(y, row)| self.row(y, row));
+        }
+        out
+    }
+}
+
+/// The whole conditioning image of `camera` (see [`Conditioning`]).
+pub fn conditioning(config: &WrapperConfig, camera: &Camera, frame: SceneFrame) -> Vec<f32> {
+    Conditioning::new(config, camera, frame).image()
 }
 
 /// What the wrapper produces for one view.
@@ -53,7 +95,8 @@ pub struct Wrapped {
 pub fn apply(weights: &SynthesisWeights, base: &RgbImage, camera: &Camera, frame: SceneFrame) -> Wrapped {
     assert_eq!((base.width, base.height), (camera.width, camera.height), "base render and camera differ in size");
     let (width, height) = (base.width as usize, base.height as usize);
-    let residual = weights.residual(&base.data, &conditioning(&weights.config, camera, frame), width, height);
+    let conditioning = Conditioning::new(&weights.config, camera, frame);
+    let residual = weights.residual_by_rows(&base.data, width, height, |y, row| conditioning.row(y, row));
     let data = base.data.iter().zip(&residual).map(|(b, r)| (b + r).clamp(0.0, 1.0)).collect();
     Wrapped { image: RgbImage { width: base.width, height: base.height, data }, residual }
 }
@@ -85,5 +128,37 @@ pub fn render_shown(
             (wrapped.image, Some(wrapped.residual))
         }
         None => (base, None),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+    use crate::random_scene::SplitMix64;
+    use noise::noise_pyramid;
+    use plucker::plucker_embeddings;
+
+    #[test]
+    fn rows_interleave_noise_then_plucker_and_match_the_whole_image_evaluation() {
+        let intrinsics = Intrinsics { width: 11, height: 7, fx: 9.0, fy: 9.5, cx: 5.2, cy: 3.4 };
+        let camera = Camera::look_at(intrinsics, Vec3::new(1.0, 2.0, -3.0), Vec3::ZERO, Vec3::Y).unwrap();
+        let frame = SceneFrame { center: Vec3::new(0.1, -0.2, 0.3), scale: 1.7 };
+        let config = WrapperConfig { width: 6, noise: true, plucker: true, seed: 42 };
+        let all = conditioning(&config, &camera, frame);
+        let noise = noise_pyramid(42, 11, 7);
+        let plucker = plucker_embeddings(&camera, frame.center, frame.scale);
+        let pixels = noise.chunks_exact(NOISE_LEVELS).zip(plucker.chunks_exact(PLUCKER_CHANNELS));
+        for (px, (n, p)) in all.chunks_exact(NOISE_LEVELS + PLUCKER_CHANNELS).zip(pixels) {
+            assert_eq!(&px[..NOISE_LEVELS], n);
+            assert_eq!(&px[NOISE_LEVELS..], p);
+        }
+        let mut rng = SplitMix64(3);
+        let values: Vec<f32> = (0..config.parameter_count()).map(|_| rng.uniform(-0.3, 0.3)).collect();
+        let weights = SynthesisWeights::from_values(config, &values);
+        let base = RgbImage { width: 11, height: 7, data: (0..11 * 7 * 3).map(|_| rng.uniform(0.0, 1.0)).collect() };
+        let wrapped = apply(&weights, &base, &camera, frame);
+        assert_eq!(wrapped.residual, weights.residual(&base.data, &all, 11, 7));
+        assert!(wrapped.residual.iter().any(|&r| r != 0.0));
     }
 }

@@ -59,30 +59,54 @@ fn source(i: usize, input: usize, out: usize) -> (usize, usize, f64) {
     (i0, (i0 + 1).min(input - 1), s - i0 as f64)
 }
 
-/// The upsampled pyramid for a `width` x `height` image, pixel-interleaved: value
-/// `(y * width + x) * 8 + level`. Binary64 arithmetic, rounded to binary32 at the end:
-/// `((1 - fy) * ((1 - fx) * c00 + fx * c01) + fy * ((1 - fx) * c10 + fx * c11))`.
-pub fn noise_pyramid(seed: u64, width: usize, height: usize) -> Vec<f32> {
-    assert!(width > 0 && height > 0 && width < 1 << 24 && height < 1 << 24, "noise pyramid size");
-    let grids: Vec<(usize, usize, Vec<f64>)> = (0..NOISE_LEVELS)
-        .map(|level| {
-            let (w, h) = grid_size(width, height, level);
-            let values = (0..w * h).map(|p| f64::from(grid_sample(seed, level, p % w, p / w))).collect();
-            (w, h, values)
-        })
-        .collect();
-    let mut out = vec![0.0f32; width * height * NOISE_LEVELS];
-    out.par_chunks_mut(width * NOISE_LEVELS).enumerate().for_each(|(y, row)| {
-        for (level, (w, h, values)) in grids.iter().enumerate() {
-            let (y0, y1, fy) = source(y, *h, height);
-            for x in 0..width {
-                let (x0, x1, fx) = source(x, *w, width);
+/// The grids C_0..C_7 of one image size and seed, from which any row of the upsampled pyramid
+/// can be produced on its own (so a decoder never needs the whole pyramid in memory).
+#[derive(Debug, Clone)]
+pub struct NoiseGrids {
+    width: usize,
+    height: usize,
+    /// Per level: (grid width, grid height, samples row by row).
+    grids: Vec<(usize, usize, Vec<f64>)>,
+}
+
+impl NoiseGrids {
+    /// Draws the grids for a `width` x `height` image (sides below 2^24).
+    pub fn new(seed: u64, width: usize, height: usize) -> Self {
+        assert!(width > 0 && height > 0 && width < 1 << 24 && height < 1 << 24, "noise pyramid size");
+        let grids = (0..NOISE_LEVELS)
+            .map(|level| {
+                let (w, h) = grid_size(width, height, level);
+                let values =
+                    (0..w * h).into_par_iter().map(|p| f64::from(grid_sample(seed, level, p % w, p / w))).collect();
+                (w, h, values)
+            })
+            .collect();
+        Self { width, height, grids }
+    }
+
+    /// Row `y` of the upsampled pyramid into `row` (`width * 8` values, pixel-interleaved).
+    /// Binary64 arithmetic, rounded to binary32 at the end:
+    /// `((1 - fy) * ((1 - fx) * c00 + fx * c01) + fy * ((1 - fx) * c10 + fx * c11))`.
+    pub fn row(&self, y: usize, row: &mut [f32]) {
+        assert_eq!(row.len(), self.width * NOISE_LEVELS, "noise row length");
+        for (level, (w, h, values)) in self.grids.iter().enumerate() {
+            let (y0, y1, fy) = source(y, *h, self.height);
+            for x in 0..self.width {
+                let (x0, x1, fx) = source(x, *w, self.width);
                 let top = (1.0 - fx) * values[y0 * w + x0] + fx * values[y0 * w + x1];
                 let bottom = (1.0 - fx) * values[y1 * w + x0] + fx * values[y1 * w + x1];
                 row[x * NOISE_LEVELS + level] = ((1.0 - fy) * top + fy * bottom) as f32;
             }
         }
-    });
+    }
+}
+
+/// The upsampled pyramid for a `width` x `height` image, pixel-interleaved: value
+/// `(y * width + x) * 8 + level` (see [`NoiseGrids::row`]).
+pub fn noise_pyramid(seed: u64, width: usize, height: usize) -> Vec<f32> {
+    let grids = NoiseGrids::new(seed, width, height);
+    let mut out = vec![0.0f32; width * height * NOISE_LEVELS];
+    out.par_chunks_mut(width * NOISE_LEVELS).enumerate().for_each(|(y, row)| grids.row(y, row));
     out
 }
 

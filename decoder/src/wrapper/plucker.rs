@@ -11,19 +11,37 @@ use crate::camera::Camera;
 /// Channels per pixel.
 pub const PLUCKER_CHANNELS: usize = 6;
 
-/// The embeddings of every pixel of `camera`, pixel-interleaved (`(y * width + x) * 6 + c`).
-/// `center` and `scale` normalize the scene: o = (camera center - center) / scale.
-pub fn plucker_embeddings(camera: &Camera, center: Vec3, scale: f32) -> Vec<f32> {
-    let (width, height) = (camera.width as usize, camera.height as usize);
-    let origin = (camera.center() - center) / scale;
-    let mut out = vec![0.0f32; width * height * PLUCKER_CHANNELS];
-    out.par_chunks_mut(width * PLUCKER_CHANNELS).enumerate().for_each(|(y, row)| {
+/// The rays of one camera in a scene frame, from which any row of embeddings can be produced on
+/// its own.
+#[derive(Debug, Clone, Copy)]
+pub struct PluckerRays {
+    camera: Camera,
+    /// The camera center in scene-normalized coordinates.
+    origin: Vec3,
+}
+
+impl PluckerRays {
+    /// `center` and `scale` normalize the scene: o = (camera center - center) / scale.
+    pub fn new(camera: &Camera, center: Vec3, scale: f32) -> Self {
+        Self { camera: *camera, origin: (camera.center() - center) / scale }
+    }
+
+    /// Row `y` of the embeddings into `row` (`width * 6` values, pixel-interleaved).
+    pub fn row(&self, y: usize, row: &mut [f32]) {
+        assert_eq!(row.len(), self.camera.width as usize * PLUCKER_CHANNELS, "Plücker row length");
         for (x, px) in row.chunks_exact_mut(PLUCKER_CHANNELS).enumerate() {
-            let d = camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
-            let m = origin.cross(d);
+            let d = self.camera.ray_direction(x as f32 + 0.5, y as f32 + 0.5);
+            let m = self.origin.cross(d);
             px.copy_from_slice(&[d.x, d.y, d.z, m.x, m.y, m.z]);
         }
-    });
+    }
+}
+
+/// The embeddings of every pixel of `camera`, pixel-interleaved (`(y * width + x) * 6 + c`).
+pub fn plucker_embeddings(camera: &Camera, center: Vec3, scale: f32) -> Vec<f32> {
+    let rays = PluckerRays::new(camera, center, scale);
+    let mut out = vec![0.0f32; camera.width as usize * camera.height as usize * PLUCKER_CHANNELS];
+    out.par_chunks_mut(camera.width as usize * PLUCKER_CHANNELS).enumerate().for_each(|(y, row)| rays.row(y, row));
     out
 }
 

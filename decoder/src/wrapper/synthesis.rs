@@ -104,18 +104,34 @@ impl SynthesisWeights {
     /// The residual R [H * W * 3, interleaved] for a base image `base` (interleaved RGB) and the
     /// pixel-interleaved `conditioning` ([`WrapperConfig::conditioning_channels`] per pixel).
     pub fn residual(&self, base: &[f32], conditioning: &[f32], width: usize, height: usize) -> Vec<f32> {
-        let pixels = width * height;
+        let row_len = width * self.config.conditioning_channels();
+        assert_eq!(conditioning.len(), row_len * height, "conditioning size");
+        self.residual_by_rows(base, width, height, |y, row| {
+            row.copy_from_slice(&conditioning[y * row_len..(y + 1) * row_len]);
+        })
+    }
+
+    /// [`Self::residual`] with the conditioning produced one row at a time by
+    /// `conditioning_row(y, row)`, so that it never has to exist for the whole image.
+    pub fn residual_by_rows(
+        &self,
+        base: &[f32],
+        width: usize,
+        height: usize,
+        conditioning_row: impl Fn(usize, &mut [f32]) + Sync,
+    ) -> Vec<f32> {
         let k = self.config.conditioning_channels();
-        assert_eq!(base.len(), pixels * 3, "base image size");
-        assert_eq!(conditioning.len(), pixels * k, "conditioning size");
-        let mut r = vec![0.0f32; pixels * 3];
+        assert_eq!(base.len(), width * height * 3, "base image size");
+        let mut r = vec![0.0f32; width * height * 3];
         r.par_chunks_mut(width * 3).enumerate().for_each(|(y, row)| {
+            let mut conditioning = vec![0.0f32; width * k];
+            conditioning_row(y, &mut conditioning);
             let mut input = vec![0.0f32; 3 + k];
             let mut hidden = vec![0.0f32; self.config.width];
             for (x, out) in row.chunks_exact_mut(3).enumerate() {
                 let p = y * width + x;
                 input[..3].copy_from_slice(&base[p * 3..p * 3 + 3]);
-                input[3..].copy_from_slice(&conditioning[p * k..(p + 1) * k]);
+                input[3..].copy_from_slice(&conditioning[x * k..(x + 1) * k]);
                 for (j, h) in hidden.iter_mut().enumerate() {
                     *h =
                         dot(&self.hidden[j * input.len()..(j + 1) * input.len()], &input, self.hidden_bias[j]).max(0.0);
