@@ -4,7 +4,7 @@ mod common;
 
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, rgb_to_sh_dc};
-use pwgs_decoder::raster::{RenderOptions, rasterize, render};
+use pwgs_decoder::raster::{RenderOptions, Window, rasterize, rasterize_window, render};
 
 #[test]
 fn matches_naive_reference_on_random_scenes() {
@@ -20,6 +20,39 @@ fn matches_naive_reference_on_random_scenes() {
         let diff = max_abs_diff(&fast, &naive);
         assert!(diff < 1e-5, "seed {seed}: max difference {diff}");
     }
+}
+
+#[test]
+fn a_window_is_exactly_that_part_of_the_whole_image() {
+    let mut rng = Rng(11);
+    let g = random_gaussians(&mut rng, 400, 2);
+    let cam = camera(70, 50, 60.0, 62.0, 33.0, 26.0);
+    let options = RenderOptions { background: [0.3, 0.1, 0.6], ..Default::default() };
+    let full = rasterize(&g, &cam, &options);
+    // Windows off the tile grid, at the image's edges, one pixel wide, and the whole image.
+    for window in [
+        Window { x0: 5, y0: 7, width: 37, height: 21 },
+        Window { x0: 40, y0: 30, width: 30, height: 20 },
+        Window { x0: 0, y0: 49, width: 70, height: 1 },
+        Window::full(&cam),
+    ] {
+        let part = rasterize_window(&g, &cam, window, &options);
+        assert_eq!((part.color.width, part.color.height), (window.width, window.height));
+        for y in 0..window.height {
+            for x in 0..window.width {
+                let (p, q) = ((y * window.width + x) as usize, ((window.y0 + y) * 70 + window.x0 + x) as usize);
+                assert_eq!(
+                    part.color.data[p * 3..p * 3 + 3],
+                    full.color.data[q * 3..q * 3 + 3],
+                    "{window:?} at {x},{y}"
+                );
+                assert_eq!(part.transmittance[p], full.transmittance[q]);
+                assert_eq!(part.depth[p], full.depth[q]);
+            }
+        }
+        assert!(part.splats.len() <= full.splats.len());
+    }
+    assert!(!Window { x0: 60, y0: 0, width: 11, height: 5 }.fits(&cam));
 }
 
 /// One opaque-ish Gaussian at `mean` with isotropic scale.

@@ -30,10 +30,9 @@ fn time<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 /// Splat-pixel pairs blending visits: for every tile entry, the pixels of the splat's box in
 /// that tile (an upper bound on alpha evaluations, before early termination).
 fn blend_pairs(r: &Rendered) -> u64 {
-    let (w, h) = (r.color.width, r.color.height);
     let mut pairs = 0u64;
     for t in 0..(r.bins.tiles_x * r.bins.tiles_y) as usize {
-        let [x0, x1, y0, y1] = r.bins.tile_rect(t, w, h);
+        let [x0, x1, y0, y1] = r.bins.tile_rect(t);
         for &i in r.bins.tile(t) {
             let [bx0, bx1, by0, by1] = r.splats[i as usize].bbox;
             let nx = bx1.min(x1).saturating_sub(bx0.max(x0)) as u64;

@@ -18,7 +18,7 @@ use burn::backend::{Backend, Dispatch, ExtensionType, Flex, TensorMetadata, back
 use burn::tensor::{Tensor, TensorData};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::raster::{RenderOptions, Rendered, rasterize};
+use pwgs_decoder::raster::{RenderOptions, Rendered, Window, rasterize_window};
 
 use crate::backward::{Gradients, backward};
 
@@ -40,11 +40,25 @@ pub struct SplatTensors<B: Backend> {
     pub screen_probe: FloatTensor<B>,
 }
 
-/// What to render: camera and rasterizer settings.
+/// What to render: camera, rasterizer settings and the part of the image wanted.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SplatView {
     pub camera: Camera,
     pub options: RenderOptions,
+    /// The pixels rendered (the image is [window height, window width, 3]); they are exactly
+    /// those pixels of the whole render, and only they pass gradients back.
+    pub window: Window,
+}
+
+impl SplatView {
+    /// The whole image of `camera`.
+    pub fn full(camera: Camera, options: RenderOptions) -> Self {
+        Self { camera, options, window: Window::full(&camera) }
+    }
+
+    fn rasterize(&self, gaussians: &Gaussians) -> Rendered {
+        rasterize_window(gaussians, &self.camera, self.window, &self.options)
+    }
 }
 
 #[backend_extension(Flex, Autodiff)]
@@ -101,7 +115,7 @@ impl SplatBackend for Flex {
     fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
         let device = splats.means.device();
         let g = gaussians_from(&splats);
-        image_tensor::<Self>(&rasterize(&g, &view.camera, &view.options), &device)
+        image_tensor::<Self>(&view.rasterize(&g), &device)
     }
 }
 
@@ -165,7 +179,7 @@ impl<C: CheckpointStrategy> SplatBackend for Autodiff<Flex, C> {
         };
         let device = inner.means.device();
         let gaussians = gaussians_from(&inner);
-        let rendered = rasterize(&gaussians, &view.camera, &view.options);
+        let rendered = view.rasterize(&gaussians);
         let image = image_tensor::<Flex>(&rendered, &device);
         match RenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
             OpsKind::Tracked(prep) => prep.finish(Arc::new(Saved { gaussians, view, rendered }), image),

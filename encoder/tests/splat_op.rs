@@ -4,7 +4,7 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{RenderOptions, rasterize};
+use pwgs_decoder::raster::{RenderOptions, Window, rasterize};
 use pwgs_encoder::backward::backward;
 use pwgs_encoder::splat_op::{SplatView, render};
 
@@ -56,10 +56,10 @@ fn values<const D: usize>(t: Tensor<D>) -> Vec<f32> {
 
 fn scene() -> (Gaussians, SplatView) {
     let g = random_gaussians(&mut SplitMix64(5), 300, 2, [-3.5, -1.5]);
-    let view = SplatView {
-        camera: axis_camera(48, 40, 40.0, 42.0, 23.0, 21.0),
-        options: RenderOptions { background: [0.2, 0.3, 0.4], ..Default::default() },
-    };
+    let view = SplatView::full(
+        axis_camera(48, 40, 40.0, 42.0, 23.0, 21.0),
+        RenderOptions { background: [0.2, 0.3, 0.4], ..Default::default() },
+    );
     (g, view)
 }
 
@@ -96,4 +96,40 @@ fn autodiff_gradients_are_the_analytic_ones() {
     let probe = values(p.probe.grad(&grads).expect("the probe is tracked"));
     assert_eq!(probe, expected.screen_mean);
     assert!(probe.iter().filter(|&&v| v > 0.0).count() > 100, "visible Gaussians have a densification signal");
+}
+
+#[test]
+fn a_window_passes_the_gradients_of_its_pixels_only() {
+    let (g, full) = scene();
+    let window = Window { x0: 9, y0: 13, width: 21, height: 17 };
+    let view = SplatView { window, ..full };
+    let device = Device::flex().autodiff();
+    let mut rng = SplitMix64(21);
+    let weights: Vec<f32> = (0..21 * 17 * 3).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    // The same weights on the whole image, zero outside the window.
+    let mut padded = vec![0.0f32; 40 * 48 * 3];
+    for y in 0..17 {
+        for x in 0..21 {
+            let (p, q) = ((y * 21 + x) * 3, ((13 + y) * 48 + 9 + x) * 3);
+            padded[q..q + 3].copy_from_slice(&weights[p..p + 3]);
+        }
+    }
+    let gradients = |view: SplatView, w: Vec<f32>| {
+        let p = params(&g, &device, true);
+        let image = draw(&p, view);
+        let [h, wd, _] = image.dims();
+        let grads = (image * Tensor::<3>::from_data(TensorData::new(w, [h, wd, 3]), &device)).sum().backward();
+        let mut all = values(p.means.grad(&grads).unwrap());
+        all.extend(values(p.log_scales.grad(&grads).unwrap()));
+        all.extend(values(p.rotations.grad(&grads).unwrap()));
+        all.extend(values(p.opacity.grad(&grads).unwrap()));
+        all.extend(values(p.sh.grad(&grads).unwrap()));
+        all
+    };
+    let (part, whole) = (gradients(view, weights), gradients(full, padded));
+    let scale = whole.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(part.iter().filter(|v| **v != 0.0).count() > 100, "the window's Gaussians get gradients");
+    for (a, b) in part.iter().zip(&whole) {
+        assert!((a - b).abs() <= 1e-5 * scale, "{a} vs {b}");
+    }
 }

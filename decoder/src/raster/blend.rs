@@ -46,7 +46,7 @@ pub fn splat_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Opti
     Some(AlphaSample { alpha, falloff })
 }
 
-/// Output buffers for one band of tiles (TILE_SIZE image rows).
+/// Output buffers for one band of tiles (TILE_SIZE rows of the window).
 pub struct Band<'a> {
     pub color: &'a mut [f32],
     pub transmittance: &'a mut [f32],
@@ -54,19 +54,13 @@ pub struct Band<'a> {
     pub last_contributor: &'a mut [u32],
 }
 
-/// Blends tile row `ty` into `band`.
-pub fn blend_band(
-    ty: u32,
-    bins: &TileBins,
-    splats: &[Splat],
-    options: &RenderOptions,
-    width: u32,
-    height: u32,
-    band: Band,
-) {
+/// Blends tile row `ty` into `band`. Pixel coordinates are the image's, whatever the window,
+/// so a window's pixels are bit-identical to the same pixels of the whole image.
+pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, band: Band) {
+    let window = bins.window;
     for tx in 0..bins.tiles_x {
         let t = (ty * bins.tiles_x + tx) as usize;
-        let [x0, x1, y0, y1] = bins.tile_rect(t, width, height);
+        let [x0, x1, y0, y1] = bins.tile_rect(t);
         let tw = (x1 - x0) as usize;
         let mut trans = [1.0f32; TILE_PIXELS];
         let mut rgb = [[0.0f32; 3]; TILE_PIXELS];
@@ -108,8 +102,8 @@ pub fn blend_band(
         for py in y0..y1 {
             for px in x0..x1 {
                 let p = (py - y0) as usize * tw + (px - x0) as usize;
-                // The band starts at image row y0.
-                let o = (py - y0) as usize * width as usize + px as usize;
+                // The band starts at the tile's first row.
+                let o = (py - y0) as usize * window.width as usize + (px - window.x0) as usize;
                 for c in 0..3 {
                     band.color[o * 3 + c] = rgb[p][c] + trans[p] * options.background[c];
                 }

@@ -58,7 +58,34 @@ impl Default for RenderOptions {
     }
 }
 
-/// A rendered view with what the backward pass needs.
+/// A rectangle of the image in pixels: x in [x0, x0 + width), y in [y0, y0 + height). A
+/// window's render is exactly that part of the whole image's render, at the cost of its own
+/// pixels (every Gaussian is still projected).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Window {
+    pub x0: u32,
+    pub y0: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl Window {
+    /// The whole image of `camera`.
+    pub fn full(camera: &Camera) -> Self {
+        Self { x0: 0, y0: 0, width: camera.width, height: camera.height }
+    }
+
+    /// Whether the window is non-empty and inside `camera`'s image.
+    pub fn fits(&self, camera: &Camera) -> bool {
+        self.width > 0
+            && self.height > 0
+            && u64::from(self.x0) + u64::from(self.width) <= u64::from(camera.width)
+            && u64::from(self.y0) + u64::from(self.height) <= u64::from(camera.height)
+    }
+}
+
+/// A rendered view (or window of one) with what the backward pass needs. Per-pixel arrays
+/// cover the window, row by row.
 #[derive(Debug, Clone)]
 pub struct Rendered {
     pub color: RgbImage,
@@ -84,9 +111,18 @@ pub fn visible_splats(gaussians: &Gaussians, camera: &Camera, settings: &Project
 
 /// Renders a view.
 pub fn rasterize(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions) -> Rendered {
-    let splats = visible_splats(gaussians, camera, &options.projection);
-    let (width, height) = (camera.width, camera.height);
-    let bins = tiles::bin(&splats, width, height);
+    rasterize_window(gaussians, camera, Window::full(camera), options)
+}
+
+/// Renders a window of a view. Panics unless the window [`fits`](Window::fits) the camera.
+pub fn rasterize_window(gaussians: &Gaussians, camera: &Camera, window: Window, options: &RenderOptions) -> Rendered {
+    assert!(window.fits(camera), "window {window:?} is not inside the {}x{} image", camera.width, camera.height);
+    let mut splats = visible_splats(gaussians, camera, &options.projection);
+    if window != Window::full(camera) {
+        splats = clip_to_window(splats, window);
+    }
+    let (width, height) = (window.width, window.height);
+    let bins = tiles::bin(&splats, window);
     let pixels = width as usize * height as usize;
     let mut color = vec![0.0f32; pixels * 3];
     let mut transmittance = vec![0.0f32; pixels];
@@ -101,9 +137,25 @@ pub fn rasterize(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions
         .enumerate()
         .for_each(|(ty, (((color, transmittance), depth), last_contributor))| {
             let band = blend::Band { color, transmittance, depth, last_contributor };
-            blend::blend_band(ty as u32, &bins, &splats, options, width, height, band);
+            blend::blend_band(ty as u32, &bins, &splats, options, band);
         });
     Rendered { color: RgbImage { width, height, data: color }, transmittance, depth, last_contributor, splats, bins }
+}
+
+/// The splats whose pixel box meets `window`, boxes clipped to it, order kept.
+fn clip_to_window(splats: Vec<Splat>, window: Window) -> Vec<Splat> {
+    let (x_end, y_end) = (window.x0 + window.width, window.y0 + window.height);
+    splats
+        .into_iter()
+        .filter_map(|mut s| {
+            let [x0, x1, y0, y1] = s.bbox;
+            let [x0, x1, y0, y1] = [x0.max(window.x0), x1.min(x_end), y0.max(window.y0), y1.min(y_end)];
+            (x0 < x1 && y0 < y1).then(|| {
+                s.bbox = [x0, x1, y0, y1];
+                s
+            })
+        })
+        .collect()
 }
 
 /// Renders a view's colors only.

@@ -1,14 +1,16 @@
-//! Binning of depth-sorted splats into 16x16 pixel tiles.
+//! Binning of depth-sorted splats into 16x16 pixel tiles of the rendered window.
 //!
 //! Splats arrive sorted front to back; a counting sort by tile keeps that order inside each
 //! tile, so no per-tile sort is needed and the result does not depend on threading.
 
-use super::TILE_SIZE;
 use super::project::Splat;
+use super::{TILE_SIZE, Window};
 
 /// For each tile (row-major), the splats that may touch it, front to back.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TileBins {
+    /// The part of the image rendered; tiles start at its top left corner.
+    pub window: Window,
     pub tiles_x: u32,
     pub tiles_y: u32,
     /// `entries[offsets[t]..offsets[t + 1]]` are tile t's splats.
@@ -23,11 +25,18 @@ impl TileBins {
         &self.entries[self.offsets[t]..self.offsets[t + 1]]
     }
 
-    /// Pixel rectangle of tile `t`: x in [x0, x1), y in [y0, y1).
-    pub fn tile_rect(&self, t: usize, width: u32, height: u32) -> [u32; 4] {
+    /// Pixel rectangle of tile `t` in image coordinates: x in [x0, x1), y in [y0, y1).
+    pub fn tile_rect(&self, t: usize) -> [u32; 4] {
+        let w = self.window;
         let (tx, ty) = (t as u32 % self.tiles_x, t as u32 / self.tiles_x);
-        let (x0, y0) = (tx * TILE_SIZE, ty * TILE_SIZE);
-        [x0, (x0 + TILE_SIZE).min(width), y0, (y0 + TILE_SIZE).min(height)]
+        let (x0, y0) = (w.x0 + tx * TILE_SIZE, w.y0 + ty * TILE_SIZE);
+        [x0, (x0 + TILE_SIZE).min(w.x0 + w.width), y0, (y0 + TILE_SIZE).min(w.y0 + w.height)]
+    }
+
+    /// Index in the window's pixel arrays of image pixel (x, y).
+    pub fn pixel_index(&self, x: u32, y: u32) -> usize {
+        let w = self.window;
+        (y - w.y0) as usize * w.width as usize + (x - w.x0) as usize
     }
 }
 
@@ -36,16 +45,17 @@ fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
     p0 / TILE_SIZE..(p1 - 1) / TILE_SIZE + 1
 }
 
-/// Bins splats (already sorted front to back) into tiles by their pixel bounding boxes.
-pub fn bin(splats: &[Splat], width: u32, height: u32) -> TileBins {
-    let tiles_x = width.div_ceil(TILE_SIZE);
-    let tiles_y = height.div_ceil(TILE_SIZE);
+/// Bins splats (already sorted front to back, pixel boxes clipped to `window`) into the
+/// window's tiles.
+pub fn bin(splats: &[Splat], window: Window) -> TileBins {
+    let tiles_x = window.width.div_ceil(TILE_SIZE);
+    let tiles_y = window.height.div_ceil(TILE_SIZE);
     let tile_count = (tiles_x * tiles_y) as usize;
     let mut offsets = vec![0usize; tile_count + 1];
     let for_each_tile = |s: &Splat, f: &mut dyn FnMut(usize)| {
         let [x0, x1, y0, y1] = s.bbox;
-        for ty in tile_range(y0, y1) {
-            for tx in tile_range(x0, x1) {
+        for ty in tile_range(y0 - window.y0, y1 - window.y0) {
+            for tx in tile_range(x0 - window.x0, x1 - window.x0) {
                 f((ty * tiles_x + tx) as usize);
             }
         }
@@ -64,5 +74,5 @@ pub fn bin(splats: &[Splat], width: u32, height: u32) -> TileBins {
             cursor[t] += 1;
         });
     }
-    TileBins { tiles_x, tiles_y, offsets, entries }
+    TileBins { window, tiles_x, tiles_y, offsets, entries }
 }

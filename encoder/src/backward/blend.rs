@@ -91,7 +91,6 @@ struct PixelState {
 /// Within a tile, splats are visited back to front and each only over its own pixel box, so
 /// the work is that of the forward pass, not pixels x splats.
 pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f32]) -> Vec<SplatGrad> {
-    let (width, height) = (rendered.color.width, rendered.color.height);
     assert_eq!(v_color.len(), rendered.color.data.len(), "v_color must match the image");
     let bins = &rendered.bins;
     let tile_count = (bins.tiles_x * bins.tiles_y) as usize;
@@ -108,12 +107,12 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
     }
     slices.into_par_iter().enumerate().for_each(|(t, grads)| {
         let entries = bins.tile(t);
-        let [x0, x1, y0, y1] = bins.tile_rect(t, width, height);
+        let [x0, x1, y0, y1] = bins.tile_rect(t);
         let tw = (x1 - x0) as usize;
         let mut pixels: Vec<PixelState> = Vec::with_capacity(tw * (y1 - y0) as usize);
         for py in y0..y1 {
             for px in x0..x1 {
-                let p = (py * width + px) as usize;
+                let p = bins.pixel_index(px, py);
                 let v = [v_color[p * 3], v_color[p * 3 + 1], v_color[p * 3 + 2]].map(f64::from);
                 let t_final = rendered.transmittance[p] as f64;
                 pixels.push(PixelState {

@@ -225,8 +225,12 @@ impl Trainer {
         let sh = p.sh.clone().autodiff().require_grad();
         let probe = Tensor::<1>::zeros([n], &self.device).autodiff().require_grad();
         let active_sh = sh.clone().slice([0..n, 0..sh_coeff_count(degree), 0..3]);
-        let view =
-            SplatView { camera, options: RenderOptions { background: self.config.background, ..Default::default() } };
+        let step_crop = self.wrapper.as_ref().map(|stage| stage.crop(self.rng.next_u64() as usize));
+        let mut view =
+            SplatView::full(camera, RenderOptions { background: self.config.background, ..Default::default() });
+        if let Some(c) = step_crop {
+            view.window = c.window;
+        }
         let image = render(
             means.clone(),
             log_scales.clone(),
@@ -236,15 +240,17 @@ impl Trainer {
             probe.clone(),
             view,
         );
-        let (loss, shown, wrapper_params) = match &mut self.wrapper {
-            Some(stage) => {
-                let [h, w, _] = image.dims();
-                let crop = (self.rng.next_u64() % stage.crop_count(w, h) as u64) as usize;
-                let (loss, shown, params) = stage.loss(view_index, crop, image, &target);
+        let (loss, shown, wrapper_params) = match (&mut self.wrapper, step_crop) {
+            (Some(stage), Some(step)) => {
+                let (loss, shown, params) = stage.loss(view_index, step, image, &target);
                 (loss, shown, Some(params))
             }
-            None => (self.base_loss(image.clone(), target.clone().autodiff()), image, None),
+            _ => (self.base_loss(image.clone(), target.clone().autodiff()), image, None),
         };
+        // PSNR of what was rendered (in stage 2, the crop's window).
+        let w = view.window;
+        let (x0, y0) = (w.x0 as usize, w.y0 as usize);
+        let target = target.slice([y0..y0 + w.height as usize, x0..x0 + w.width as usize, 0..3]);
         let mse = (shown.inner() - target).powi_scalar(2).mean();
         let grads = loss.backward();
         let loss_value = tensor_values(loss.inner())[0];

@@ -4,9 +4,10 @@
 //!
 //! WD goes through VGG16, far too slow on a CPU for whole images at every step, so each step
 //! scores one crop: the crops of a view come from a fixed 3 x 3 grid of positions, which lets
-//! the ground truth's features be computed once per (view, crop) and cached. f itself runs on
-//! the whole image (it is cheap), so the noise and Plücker inputs keep their full-image
-//! coordinates.
+//! the ground truth's features be computed once per (view, crop) and cached. Only the crop's
+//! window is rendered: the crop grown by the reach of f's two 3x3 convolutions, so that f's
+//! output on the crop is what it would be on the whole image (the noise and Plücker inputs
+//! keep their full-image coordinates).
 
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -15,6 +16,7 @@ use anyhow::{Context, Result, bail};
 use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::raster::Window;
 use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
 use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 
@@ -55,9 +57,26 @@ pub(super) struct WrapperStage {
     first: Tensor<1>,
     second: Tensor<1>,
     steps: u32,
-    /// Per training view: the conditioning channels [H * W, k].
-    conditioning: Vec<Tensor<2>>,
+    /// The training views' size.
+    width: usize,
+    height: usize,
+    /// Per training view: the conditioning channels [H, W, k], when f has any.
+    conditioning: Vec<Option<Tensor<3>>>,
     targets: HashMap<(usize, usize), WdTarget>,
+}
+
+/// Pixels beyond a crop that f's output on the crop depends on (two 3x3 convolutions).
+const F_REACH: usize = 2;
+
+/// What one stage-2 step scores.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepCrop {
+    /// Which crop of the view's grid.
+    pub index: usize,
+    /// The crop WD scores.
+    pub crop: Window,
+    /// The part of the image rendered: the crop grown by [`F_REACH`], clipped to the image.
+    pub window: Window,
 }
 
 /// The crop grid of a view: up to 3 positions per axis (start, middle, end).
@@ -111,8 +130,9 @@ impl WrapperStage {
         let conditioning = cameras
             .iter()
             .map(|camera| {
-                let values = conditioning(&config, camera, frame);
-                Tensor::from_data(TensorData::new(values, [width * height, k]), device)
+                (k > 0).then(|| {
+                    Tensor::from_data(TensorData::new(conditioning(&config, camera, frame), [height, width, k]), device)
+                })
             })
             .collect();
         let flat = flat_tensor(&initial_parameters(&config, rng), device);
@@ -121,6 +141,8 @@ impl WrapperStage {
             second: flat.zeros_like(),
             flat,
             steps: 0,
+            width,
+            height,
             conditioning,
             targets: HashMap::new(),
             wd,
@@ -128,42 +150,65 @@ impl WrapperStage {
         })
     }
 
-    /// Number of crops of a view.
-    pub fn crop_count(&self, width: usize, height: usize) -> usize {
-        let c = self.settings.crop;
-        crop_origins(width, c.min(width)).len() * crop_origins(height, c.min(height)).len()
+    /// The crop grid's positions along x and y.
+    fn crop_grid(&self) -> (Vec<usize>, Vec<usize>) {
+        let (cw, ch) = (self.settings.crop.min(self.width), self.settings.crop.min(self.height));
+        (crop_origins(self.width, cw), crop_origins(self.height, ch))
     }
 
-    /// The stage-2 loss of one step: WD of crop `crop` of the wrapped render `image` [H, W, 3]
-    /// (autodiff) of training view `view` against `target` [H, W, 3]. Returns the loss, the
-    /// wrapped image [H, W, 3] and the tracked parameters whose gradient [`Self::update`] takes.
+    /// Crop `index` of the grid (any number, taken modulo the grid's size) and its window.
+    pub fn crop(&self, index: usize) -> StepCrop {
+        let (xs, ys) = self.crop_grid();
+        let index = index % (xs.len() * ys.len());
+        let (cw, ch) = (self.settings.crop.min(self.width), self.settings.crop.min(self.height));
+        let (x0, y0) = (xs[index % xs.len()], ys[index / xs.len()]);
+        let (wx0, wy0) = (x0.saturating_sub(F_REACH), y0.saturating_sub(F_REACH));
+        let (wx1, wy1) = ((x0 + cw + F_REACH).min(self.width), (y0 + ch + F_REACH).min(self.height));
+        let rect = |x0: usize, y0: usize, w: usize, h: usize| Window {
+            x0: x0 as u32,
+            y0: y0 as u32,
+            width: w as u32,
+            height: h as u32,
+        };
+        StepCrop { index, crop: rect(x0, y0, cw, ch), window: rect(wx0, wy0, wx1 - wx0, wy1 - wy0) }
+    }
+
+    /// The stage-2 loss of one step: WD of `step.crop` of the wrapped render of `step.window`
+    /// (`image` [h, w, 3], autodiff) of training view `view` against the whole view's `target`
+    /// [H, W, 3]. Returns the loss, the wrapped window [h, w, 3] and the tracked parameters
+    /// whose gradient [`Self::update`] takes.
     pub fn loss(
         &mut self,
         view: usize,
-        crop: usize,
+        step: StepCrop,
         image: Tensor<3>,
         target: &Tensor<3>,
     ) -> (Tensor<1>, Tensor<3>, Tensor<1>) {
         let [height, width, _] = image.dims();
+        let StepCrop { index, crop, window } = step;
+        assert_eq!((width, height), (window.width as usize, window.height as usize), "render and window differ");
         let flat = self.flat.clone().autodiff().require_grad();
-        let input = Tensor::cat(
-            vec![image.clone().reshape([height * width, 3]), self.conditioning[view].clone().autodiff()],
-            1,
-        );
+        let (wx, wy) = (window.x0 as usize, window.y0 as usize);
+        let pixels = image.clone().reshape([height * width, 3]);
+        let input = match &self.conditioning[view] {
+            Some(c) => {
+                let k = c.dims()[2];
+                let c = c.clone().slice([wy..wy + height, wx..wx + width, 0..k]).reshape([height * width, k]);
+                Tensor::cat(vec![pixels, c.autodiff()], 1)
+            }
+            None => pixels,
+        };
         let residual = forward(&self.settings.config, flat.clone(), input, height, width);
         let shown = image.permute([2, 0, 1]).unsqueeze::<4>() + residual;
-        let (cw, ch) = (self.settings.crop.min(width), self.settings.crop.min(height));
-        let xs = crop_origins(width, cw);
-        let ys = crop_origins(height, ch);
-        let (x0, y0) = (xs[crop % xs.len()], ys[crop / xs.len()]);
-        let window = [0..1, 0..3, y0..y0 + ch, x0..x0 + cw];
+        let (cx, cy, cw, ch) = (crop.x0 as usize, crop.y0 as usize, crop.width as usize, crop.height as usize);
         let wd = &self.wd;
-        let target = self.targets.entry((view, crop)).or_insert_with(|| {
+        let target = self.targets.entry((view, index)).or_insert_with(|| {
             let t: Tensor<4> = target.clone().permute([2, 0, 1]).unsqueeze();
-            wd.target(t.slice(window.clone()))
+            wd.target(t.slice([0..1, 0..3, cy..cy + ch, cx..cx + cw]))
         });
-        let log2_sigma = crop_log2_sigma(&self.settings.log2_sigma, x0, y0, cw, ch);
-        let loss = wd.distortion(shown.clone().slice(window), target, &log2_sigma);
+        let log2_sigma = crop_log2_sigma(&self.settings.log2_sigma, cx, cy, cw, ch);
+        let inside = [0..1, 0..3, cy - wy..cy - wy + ch, cx - wx..cx - wx + cw];
+        let loss = wd.distortion(shown.clone().slice(inside), target, &log2_sigma);
         let shown = shown.squeeze_dim::<3>(0).permute([1, 2, 0]);
         (loss, shown, flat)
     }
@@ -199,5 +244,50 @@ mod tests {
         let map = SigmaMap { height: 3, width: 4, values: (0..12).map(f64::from).collect() };
         let Log2Sigma::Map(c) = crop_log2_sigma(&Log2Sigma::Map(map), 1, 1, 2, 2) else { panic!() };
         assert_eq!(c.values, vec![5.0, 6.0, 9.0, 10.0]);
+    }
+
+    /// Rendering only a crop's window must not change the loss: f's output on the crop is the
+    /// same as on the whole image, including at the image's edges.
+    #[test]
+    fn the_crop_window_gives_the_loss_of_the_whole_image() {
+        use crate::train::params::tensor_values;
+        use pwgs_decoder::random_scene::axis_camera;
+        let (width, height) = (90, 75);
+        let camera = axis_camera(width as u32, height as u32, 70.0, 70.0, 44.0, 37.0);
+        let device = Device::flex();
+        let settings = WrapperTraining {
+            config: WrapperConfig { width: 4, noise: true, plucker: true, seed: 9 },
+            start: 0,
+            log2_sigma: Log2Sigma::Constant(2.0),
+            crop: 64,
+            learning_rate: 0.01,
+            features: WdFeatures::Pixels,
+        };
+        let frame = SceneFrame { center: glam::Vec3::ZERO, scale: 1.0 };
+        let mut rng = SplitMix64(1);
+        let mut stage = WrapperStage::new(settings, &[camera], frame, &mut rng, &device).unwrap();
+        // Random f, so that every layer (the residual convolutions included) is active.
+        let values: Vec<f32> = (0..stage.flat.dims()[0]).map(|_| rng.uniform(-0.4, 0.4)).collect();
+        stage.flat = flat_tensor(&values, &device);
+        let random_image = |rng: &mut SplitMix64| {
+            let v: Vec<f32> = (0..width * height * 3).map(|_| rng.uniform(0.0, 1.0)).collect();
+            Tensor::<3>::from_data(TensorData::new(v, [height, width, 3]), &device)
+        };
+        let (image, target) = (random_image(&mut rng), random_image(&mut rng));
+        for index in 0..4 {
+            let step = stage.crop(index);
+            assert!(step.window.width < width as u32 || step.window.height < height as u32);
+            let whole = StepCrop { window: Window::full(&camera), ..step };
+            let w = step.window;
+            let part = image.clone().slice([
+                w.y0 as usize..(w.y0 + w.height) as usize,
+                w.x0 as usize..(w.x0 + w.width) as usize,
+                0..3,
+            ]);
+            let value = |t: Tensor<1>| tensor_values(t.inner())[0];
+            let a = value(stage.loss(0, step, part.autodiff(), &target).0);
+            let b = value(stage.loss(0, whole, image.clone().autodiff(), &target).0);
+            assert!((a - b).abs() <= 1e-6 * b.abs(), "crop {index}: window {a} vs whole {b}");
+        }
     }
 }
