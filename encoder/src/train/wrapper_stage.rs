@@ -150,17 +150,11 @@ impl WrapperStage {
         })
     }
 
-    /// The crop grid's positions along x and y.
-    fn crop_grid(&self) -> (Vec<usize>, Vec<usize>) {
-        let (cw, ch) = (self.settings.crop.min(self.width), self.settings.crop.min(self.height));
-        (crop_origins(self.width, cw), crop_origins(self.height, ch))
-    }
-
     /// Crop `index` of the grid (any number, taken modulo the grid's size) and its window.
     pub fn crop(&self, index: usize) -> StepCrop {
-        let (xs, ys) = self.crop_grid();
-        let index = index % (xs.len() * ys.len());
         let (cw, ch) = (self.settings.crop.min(self.width), self.settings.crop.min(self.height));
+        let (xs, ys) = (crop_origins(self.width, cw), crop_origins(self.height, ch));
+        let index = index % (xs.len() * ys.len());
         let (x0, y0) = (xs[index % xs.len()], ys[index / xs.len()]);
         let (wx0, wy0) = (x0.saturating_sub(F_REACH), y0.saturating_sub(F_REACH));
         let (wx1, wy1) = ((x0 + cw + F_REACH).min(self.width), (y0 + ch + F_REACH).min(self.height));
