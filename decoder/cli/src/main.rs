@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use pwgs_bitstream::Container;
-use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_dataset::{LoadOptions, load_cameras};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
 use pwgs_decoder::raster::RenderOptions;
@@ -232,8 +232,8 @@ fn render_dataset(
     out: &Path,
 ) -> Result<()> {
     let DatasetViews { scene, split, downscale } = *views;
-    let options = LoadOptions { downscale, background: decoded.header.background, ..Default::default() };
-    let data = load_scene(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))?;
+    let options = LoadOptions { downscale, ..Default::default() };
+    let data = load_cameras(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))?;
     let views: Vec<_> = match split {
         Split::Test => data.test.iter().collect(),
         Split::Train => data.train.iter().collect(),

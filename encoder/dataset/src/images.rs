@@ -53,16 +53,33 @@ pub fn list_images(folder: &Path) -> Result<Vec<PathBuf>, DatasetError> {
 /// Loads an image and downscales it by an integer factor.
 pub fn load(path: &Path, background: [f32; 3], factor: u32) -> Result<RgbImage, DatasetError> {
     let image = RgbImage::load(path, background)?;
+    downscaled_size(path, image.width, image.height, factor)?;
+    Ok(if factor <= 1 { image } else { downscale(&image, factor) })
+}
+
+/// The size [`load`] gives an image, read from the file's header without decoding its pixels.
+pub fn dimensions(path: &Path, factor: u32) -> Result<(u32, u32), DatasetError> {
+    let reader = image::ImageReader::open(path).map_err(|e| DatasetError::io(path, e))?;
+    let reader = reader.with_guessed_format().map_err(|e| DatasetError::io(path, e))?;
+    let (width, height) = reader
+        .into_dimensions()
+        .map_err(|e| DatasetError::malformed(path, format!("cannot read the image's size: {e}")))?;
+    downscaled_size(path, width, height, factor)
+}
+
+/// The size of a `width` x `height` image downscaled by `factor` (see [`downscale`]); an image
+/// smaller than one block is an error.
+fn downscaled_size(path: &Path, width: u32, height: u32, factor: u32) -> Result<(u32, u32), DatasetError> {
     if factor <= 1 {
-        return Ok(image);
+        return Ok((width, height));
     }
-    if image.width < factor || image.height < factor {
+    if width < factor || height < factor {
         return Err(DatasetError::malformed(
             path,
-            format!("{}x{} image is too small to downscale by {factor}", image.width, image.height),
+            format!("{width}x{height} image is too small to downscale by {factor}"),
         ));
     }
-    Ok(downscale(&image, factor))
+    Ok((width / factor, height / factor))
 }
 
 /// Box-filter downscale by an integer factor (the mean of each factor x factor block); a

@@ -21,7 +21,7 @@ pub mod transforms;
 pub mod undistort;
 
 pub use normalization::SceneNormalization;
-pub use scene::{Dataset, LoadOptions, View, load_scene};
+pub use scene::{Dataset, LoadOptions, NamedCamera, SceneCameras, View, load_cameras, load_scene};
 
 use std::path::PathBuf;
 

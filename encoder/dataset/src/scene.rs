@@ -72,8 +72,63 @@ pub struct ParsedScene {
     pub points: Option<PointCloud>,
 }
 
+/// A view's name and camera, without its image.
+#[derive(Debug, Clone)]
+pub struct NamedCamera {
+    pub name: String,
+    pub camera: Camera,
+}
+
+/// The cameras of a scene's views, split as [`load_scene`] splits them.
+#[derive(Debug, Clone)]
+pub struct SceneCameras {
+    pub train: Vec<NamedCamera>,
+    pub test: Vec<NamedCamera>,
+}
+
 /// Loads a scene folder. See the crate documentation for the formats, tried in order.
 pub fn load_scene(dir: &Path, options: &LoadOptions) -> Result<Dataset, DatasetError> {
+    let scene = parse_and_split(dir, options)?;
+    let train = load_views(scene.train, scene.factor, options.background)?;
+    let test = load_views(scene.test, scene.factor, options.background)?;
+    let cameras: Vec<Camera> = train.iter().map(|v| v.camera).collect();
+    Ok(Dataset {
+        format: scene.format,
+        normalization: SceneNormalization::from_cameras(&cameras),
+        train,
+        test,
+        points: scene.points,
+    })
+}
+
+/// The cameras [`load_scene`] would give the views, reading only the images' headers: renderers
+/// that need a dataset's viewpoints but not its pictures skip decoding them.
+pub fn load_cameras(dir: &Path, options: &LoadOptions) -> Result<SceneCameras, DatasetError> {
+    let scene = parse_and_split(dir, options)?;
+    let cameras = |specs: Vec<ViewSpec>| {
+        specs
+            .into_par_iter()
+            .map(|spec| {
+                let (width, height) = images::dimensions(&spec.image_path, scene.factor)?;
+                Ok(NamedCamera { camera: fit_camera(&spec, width, height)?, name: spec.name })
+            })
+            .collect::<Result<Vec<_>, DatasetError>>()
+    };
+    Ok(SceneCameras { train: cameras(scene.train)?, test: cameras(scene.test)? })
+}
+
+/// A parsed scene's views, split for training and testing, before any image is read.
+struct SplitScene {
+    format: &'static str,
+    train: Vec<ViewSpec>,
+    test: Vec<ViewSpec>,
+    /// Downscale still to apply to the images as read.
+    factor: u32,
+    points: Option<PointCloud>,
+}
+
+/// Detects the format, parses the cameras and splits the views.
+fn parse_and_split(dir: &Path, options: &LoadOptions) -> Result<SplitScene, DatasetError> {
     if !dir.is_dir() {
         let problem = if dir.exists() { "is not a folder" } else { "does not exist" };
         return Err(DatasetError::io(dir, std::io::Error::new(std::io::ErrorKind::NotFound, problem)));
@@ -81,7 +136,7 @@ pub fn load_scene(dir: &Path, options: &LoadOptions) -> Result<Dataset, DatasetE
     if options.downscale == 0 || options.test_every == 0 {
         return Err(DatasetError::malformed(dir, "downscale and test_every must be at least 1"));
     }
-    let (parsed, extra_factor) = if let Some(model_dir) = colmap::find_model_dir(dir) {
+    let (parsed, factor) = if let Some(model_dir) = colmap::find_model_dir(dir) {
         let source = images::choose_source(dir, "images", options.downscale)?;
         (colmap_scene(&model_dir, &source.folder)?, source.extra_factor)
     } else if transforms::detect(dir) {
@@ -93,7 +148,7 @@ pub fn load_scene(dir: &Path, options: &LoadOptions) -> Result<Dataset, DatasetE
         return Err(DatasetError::UnknownFormat { path: dir.to_path_buf() });
     };
 
-    let (train_specs, test_specs) = match parsed.explicit_test {
+    let (train, test) = match parsed.explicit_test {
         Some(test) => (parsed.views, test),
         None => {
             let (test, train): (Vec<_>, Vec<_>) =
@@ -101,19 +156,10 @@ pub fn load_scene(dir: &Path, options: &LoadOptions) -> Result<Dataset, DatasetE
             (train.into_iter().map(|(_, v)| v).collect(), test.into_iter().map(|(_, v)| v).collect())
         }
     };
-    if train_specs.is_empty() {
+    if train.is_empty() {
         return Err(DatasetError::malformed(dir, "the scene has no training views"));
     }
-    let train = load_views(train_specs, extra_factor, options.background)?;
-    let test = load_views(test_specs, extra_factor, options.background)?;
-    let cameras: Vec<Camera> = train.iter().map(|v| v.camera).collect();
-    Ok(Dataset {
-        format: parsed.format,
-        normalization: SceneNormalization::from_cameras(&cameras),
-        train,
-        test,
-        points: parsed.points,
-    })
+    Ok(SplitScene { format: parsed.format, train, test, factor, points: parsed.points })
 }
 
 /// Loads the images (in parallel), fits each camera to its image's resolution and removes lens
@@ -123,7 +169,7 @@ fn load_views(specs: Vec<ViewSpec>, factor: u32, background: [f32; 3]) -> Result
         .into_par_iter()
         .map(|spec| {
             let image = images::load(&spec.image_path, background, factor)?;
-            let camera = fit_camera(&spec, &image)?;
+            let camera = fit_camera(&spec, image.width, image.height)?;
             let image = undistort(&image, [camera.fx, camera.fy, camera.cx, camera.cy].map(f64::from), spec.distortion);
             Ok(View { name: spec.name, camera, image })
         })
@@ -132,9 +178,9 @@ fn load_views(specs: Vec<ViewSpec>, factor: u32, background: [f32; 3]) -> Result
 
 /// Scales the intrinsics from the resolution they were stated for to the loaded image's. The
 /// aspect ratios must agree (within the rounding of downscaled sizes).
-fn fit_camera(spec: &ViewSpec, image: &RgbImage) -> Result<Camera, DatasetError> {
+fn fit_camera(spec: &ViewSpec, width: u32, height: u32) -> Result<Camera, DatasetError> {
     let (cw, ch) = (spec.camera.width as f64, spec.camera.height as f64);
-    let (iw, ih) = (image.width as f64, image.height as f64);
+    let (iw, ih) = (width as f64, height as f64);
     let (sx, sy) = (iw / cw, ih / ch);
     let tolerance = 1.0 / iw.min(ih) + 1e-3;
     if (sx / sy - 1.0).abs() > tolerance {
@@ -143,9 +189,7 @@ fn fit_camera(spec: &ViewSpec, image: &RgbImage) -> Result<Camera, DatasetError>
             format!("image is {iw}x{ih} but its camera is {cw}x{ch}: aspect ratios differ"),
         ));
     }
-    spec.camera
-        .resized(image.width, image.height)
-        .map_err(|source| DatasetError::Camera { path: spec.image_path.clone(), source })
+    spec.camera.resized(width, height).map_err(|source| DatasetError::Camera { path: spec.image_path.clone(), source })
 }
 
 /// Turns a COLMAP model into views, matching its image names to the image folder: by name

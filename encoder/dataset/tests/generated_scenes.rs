@@ -7,7 +7,7 @@ use pwgs_dataset::colmap::{
     CameraModel, ColmapCamera, ColmapImage, ColmapModel, ColmapPoint, write_binary, write_text,
 };
 use pwgs_dataset::synthetic::{SyntheticOptions, cameras, generate};
-use pwgs_dataset::{Dataset, DatasetError, LoadOptions, load_scene};
+use pwgs_dataset::{Dataset, DatasetError, LoadOptions, load_cameras, load_scene};
 use pwgs_decoder::camera::matrix_to_quaternion;
 
 fn small() -> SyntheticOptions {
@@ -101,6 +101,33 @@ fn colmap_binary_and_text_models_give_the_same_cameras() {
         }
         assert_eq!(loaded.points.unwrap().positions, vec![[0.0, 0.1, 0.2]]);
     }
+}
+
+#[test]
+fn cameras_alone_are_those_of_the_loaded_views() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("scene");
+    let data = generated(&scene);
+    let colmap = tmp.path().join("colmap");
+    std::fs::create_dir_all(&colmap).unwrap();
+    std::os::unix::fs::symlink(scene.join("images"), colmap.join("images")).unwrap();
+    as_colmap(&data, &colmap, false);
+    for (dir, downscale) in [(&scene, 1), (&scene, 2), (&colmap, 3)] {
+        let options = LoadOptions { downscale, ..Default::default() };
+        let views = load_scene(dir, &options).unwrap();
+        let cameras = load_cameras(dir, &options).unwrap();
+        for (views, cameras) in [(&views.train, &cameras.train), (&views.test, &cameras.test)] {
+            assert_eq!(views.len(), cameras.len());
+            for (view, named) in views.iter().zip(cameras) {
+                assert_eq!((&named.name, named.camera), (&view.name, view.camera), "downscale {downscale}");
+                assert_eq!((named.camera.width, named.camera.height), (view.image.width, view.image.height));
+            }
+        }
+    }
+    // A file that is not an image is named in the error.
+    std::fs::write(scene.join("images/view_003.png"), b"not a png").unwrap();
+    let message = load_cameras(&scene, &LoadOptions::default()).unwrap_err().to_string();
+    assert!(message.contains("view_003.png"), "{message}");
 }
 
 /// Loading must fail with an error whose message contains `needle`.

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_dataset::{LoadOptions, load_cameras, load_scene};
 
 fn shared_scene(name: &str) -> Option<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes").join(name);
@@ -32,6 +32,10 @@ fn fern_from_colmap() {
         assert!((cam.fx - 3260.526 / 8.0).abs() < 0.01 && (cam.fy - cam.fx).abs() < 1e-3, "fx {}", cam.fx);
         assert!((cam.cx - 252.0).abs() < 0.01 && (cam.cy - 189.0).abs() < 0.01);
     }
+    // Reading only the JPEG headers gives the same cameras.
+    let cameras = load_cameras(&dir, &LoadOptions { downscale: 8, ..Default::default() }).unwrap();
+    let named = cameras.train.iter().chain(&cameras.test).map(|c| (c.name.as_str(), c.camera));
+    assert!(named.eq(data.train.iter().chain(&data.test).map(|v| (v.name.as_str(), v.camera))));
     // Every view sees most SfM points in front of it and inside the image (a forward-facing
     // capture): wrong poses, axes or intrinsics would throw them out.
     let points = data.points.as_ref().expect("COLMAP scenes carry their SfM points");
