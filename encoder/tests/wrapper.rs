@@ -115,4 +115,18 @@ fn ablations_and_bad_wrapper_options() {
     bad(&["--wd-features", "pixels", "--wd-log2-sigma", "9"], "log2 sigma");
     bad(&["--wd-features", "pixels", "--wd-log2-sigma-map", "/nonexistent.png"], "nonexistent");
     bad(&["--weights", "/nonexistent"], "VGG16");
+
+    // Settings that stage 2 cannot use are refused before stage 1 trains: no progress line of
+    // a 200-iteration run's first half comes before the error.
+    let early = |scene: &str, extra: &[&str], needle: &str| {
+        let mut args = vec![scene, "--iters", "200", "--wrapper"];
+        args.extend(extra);
+        let out = Command::new(env!("CARGO_BIN_EXE_pwenc")).args(&args).env("HOME", &empty).output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && stderr.contains(needle), "{extra:?}: {stderr}");
+        assert!(!stderr.contains("iteration 100/200"), "{extra:?} failed only after stage 1: {stderr}");
+    };
+    early(&dir("scene"), &["--weights", &empty], "VGG16");
+    success(pwenc(&["generate-scene", &dir("small"), "--width", "48", "--height", "48", "--views", "5"]));
+    early(&dir("small"), &["--wd-features", "pixels", "--wd-crop", "64"], "at least 61x61");
 }

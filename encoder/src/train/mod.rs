@@ -25,6 +25,7 @@ use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 
 use crate::metrics::ssim::{SsimConvention, ssim};
+use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::splat_op::{SplatView, render};
 use adam::{LearningRates, Moments};
 use densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset_opacity};
@@ -140,6 +141,8 @@ pub struct Trainer {
     extent: f32,
     frame: SceneFrame,
     rng: SplitMix64,
+    /// What stage 2's WD compares, loaded before training starts; moves into the stage.
+    wd: Option<VggWasserstein>,
     /// Stage 2's state, from its first iteration on.
     wrapper: Option<WrapperStage>,
     device: Device,
@@ -171,6 +174,8 @@ impl Trainer {
         if let Some(bad) = non_finite_parameter(&params, 0.0) {
             bail!("the initial model has NaN or infinite {bad}; repair or drop those Gaussians first");
         }
+        let cameras: Vec<_> = dataset.train.iter().map(|v| v.camera).collect();
+        let wd = config.wrapper.as_ref().map(|w| w.prepare(&cameras, &device)).transpose()?;
         let views =
             dataset.train.iter().map(|v| TrainView { camera: v.camera, target: upload_image(v, &device) }).collect();
         Ok(Self {
@@ -182,6 +187,7 @@ impl Trainer {
             extent: dataset.normalization.scale,
             frame: dataset.normalization.frame(),
             rng: SplitMix64(config.seed),
+            wd,
             wrapper: None,
             device,
             iteration: 0,
@@ -209,7 +215,7 @@ impl Trainer {
     /// row training stops with an error naming the parameter, and the model holds the last
     /// good state.
     pub fn step(&mut self) -> Result<StepReport> {
-        self.start_wrapper_if_due()?;
+        self.start_wrapper_if_due();
         let it = self.iteration;
         let view_index = self.next_view();
         let camera = self.views[view_index].camera;
@@ -313,16 +319,15 @@ impl Trainer {
     }
 
     /// Enters stage 2 at its first iteration.
-    fn start_wrapper_if_due(&mut self) -> Result<()> {
+    fn start_wrapper_if_due(&mut self) {
         if let Some(settings) = &self.config.wrapper
-            && self.wrapper.is_none()
             && self.iteration >= settings.start
+            && let Some(wd) = self.wd.take()
         {
             let cameras: Vec<_> = self.views.iter().map(|v| v.camera).collect();
             self.wrapper =
-                Some(WrapperStage::new(settings.clone(), &cameras, self.frame, &mut self.rng, &self.device)?);
+                Some(WrapperStage::new(settings.clone(), wd, &cameras, self.frame, &mut self.rng, &self.device));
         }
-        Ok(())
     }
 
     /// The synthesis network's current (float) weights, once stage 2 has begun.

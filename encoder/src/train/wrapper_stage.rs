@@ -98,15 +98,11 @@ fn crop_log2_sigma(log2_sigma: &Log2Sigma, x0: usize, y0: usize, w: usize, h: us
     }
 }
 
-impl WrapperStage {
-    /// Prepares stage 2 for the training `cameras` (all of one size), loading VGG16 if needed.
-    pub fn new(
-        settings: WrapperTraining,
-        cameras: &[Camera],
-        frame: SceneFrame,
-        rng: &mut SplitMix64,
-        device: &Device,
-    ) -> Result<Self> {
+impl WrapperTraining {
+    /// Checks the settings against the training `cameras` and loads what WD compares (VGG16
+    /// unless pixels only). Training calls it before its first step, so that a missing weights
+    /// file or an unusable setting is reported before stage 1 spends its time, not after.
+    pub fn prepare(&self, cameras: &[Camera], device: &Device) -> Result<VggWasserstein> {
         let (width, height) = (cameras[0].width as usize, cameras[0].height as usize);
         if cameras.iter().any(|c| (c.width as usize, c.height as usize) != (width, height)) {
             bail!("the perceptual wrapper trains on views of one size");
@@ -114,17 +110,31 @@ impl WrapperStage {
         if width.min(height) < MIN_SIDE {
             bail!("the perceptual wrapper's WD needs images of at least {MIN_SIDE}x{MIN_SIDE}, got {width}x{height}");
         }
-        if let Log2Sigma::Map(map) = &settings.log2_sigma
+        if let Log2Sigma::Map(map) = &self.log2_sigma
             && (map.width, map.height) != (width, height)
         {
             bail!("the log2 sigma map is {}x{}, the training views {width}x{height}", map.width, map.height);
         }
-        settings.log2_sigma.validate().map_err(anyhow::Error::msg)?;
-        let wd = match &settings.features {
+        self.log2_sigma.validate().map_err(anyhow::Error::msg)?;
+        Ok(match &self.features {
             WdFeatures::Vgg(dirs) => VggWasserstein::load(dirs, device)
                 .context("WD needs the VGG16 weights (run `pwenc fetch-weights`, or pass --weights DIR)")?,
             WdFeatures::Pixels => VggWasserstein::pixels_only(),
-        };
+        })
+    }
+}
+
+impl WrapperStage {
+    /// Starts stage 2 on the training `cameras`, with `wd` from [`WrapperTraining::prepare`].
+    pub fn new(
+        settings: WrapperTraining,
+        wd: VggWasserstein,
+        cameras: &[Camera],
+        frame: SceneFrame,
+        rng: &mut SplitMix64,
+        device: &Device,
+    ) -> Self {
+        let (width, height) = (cameras[0].width as usize, cameras[0].height as usize);
         let config = settings.config;
         let k = config.conditioning_channels();
         let conditioning = cameras
@@ -136,7 +146,7 @@ impl WrapperStage {
             })
             .collect();
         let flat = flat_tensor(&initial_parameters(&config, rng), device);
-        Ok(Self {
+        Self {
             first: flat.zeros_like(),
             second: flat.zeros_like(),
             flat,
@@ -147,7 +157,7 @@ impl WrapperStage {
             targets: HashMap::new(),
             wd,
             settings,
-        })
+        }
     }
 
     /// Crop `index` of the grid (any number, taken modulo the grid's size) and its window.
@@ -259,7 +269,8 @@ mod tests {
         };
         let frame = SceneFrame { center: glam::Vec3::ZERO, scale: 1.0 };
         let mut rng = SplitMix64(1);
-        let mut stage = WrapperStage::new(settings, &[camera], frame, &mut rng, &device).unwrap();
+        let wd = settings.prepare(&[camera], &device).unwrap();
+        let mut stage = WrapperStage::new(settings, wd, &[camera], frame, &mut rng, &device);
         // Random f, so that every layer (the residual convolutions included) is active.
         let values: Vec<f32> = (0..stage.flat.dims()[0]).map(|_| rng.uniform(-0.4, 0.4)).collect();
         stage.flat = flat_tensor(&values, &device);
