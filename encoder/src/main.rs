@@ -461,6 +461,18 @@ fn read_ply(path: &Path) -> Result<Gaussians> {
 
 /// `pwenc --from-ply`: compress a model trained elsewhere, optionally checking the decoded
 /// stream's renders against the model's own on an orbit.
+/// Fails now, rather than after training, if an output cannot be written; creates the
+/// folders of renders.
+fn check_outputs(args: &EncodeArgs) -> Result<()> {
+    for path in [&args.output, &args.report, &args.export_ply].into_iter().flatten() {
+        pwgs_decoder::atomic_file::check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    for dir in [&args.eval, &args.orbit_renders].into_iter().flatten() {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    Ok(())
+}
+
 fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
     let output = args.output.as_deref().context("--from-ply needs -o/--output for the stream")?;
     let gaussians = read_ply(ply)?;
@@ -510,6 +522,7 @@ fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
 }
 
 fn encode(args: EncodeArgs) -> Result<()> {
+    check_outputs(&args)?;
     if let Some(ply) = &args.from_ply {
         return compress_ply(ply, &args);
     }

@@ -59,6 +59,23 @@ fn bad_input_is_a_clear_error() {
         assert!(stderr.contains(needle), "{args:?}: `{stderr}` should mention `{needle}`");
         assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
     }
+    // An output that cannot be written is refused before training, and an existing file in its
+    // place is left as it was.
+    let kept = tmp.path().join("kept");
+    std::fs::write(&kept, b"earlier output").unwrap();
+    let folder = tmp.path().to_path_buf();
+    for (kept_as, flag, path) in [
+        ("--report", "-o", missing.join("out.pwb")),
+        ("-o", "--report", missing.join("r.json")),
+        ("-o", "--export-ply", folder),
+    ] {
+        let args = [scene, "--iters", "300", kept_as, kept.to_str().unwrap(), flag, path.to_str().unwrap()];
+        let out = pwenc(&args);
+        let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        assert!(!out.status.success() && stderr.contains("cannot write"), "{args:?}: {stderr}");
+        assert!(!stdout.contains("trained"), "{args:?} trained before failing: {stdout}");
+        assert_eq!(std::fs::read(&kept).unwrap(), b"earlier output");
+    }
 }
 
 #[test]
