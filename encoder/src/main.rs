@@ -459,8 +459,6 @@ fn read_ply(path: &Path) -> Result<Gaussians> {
     Ok(loaded.gaussians)
 }
 
-/// `pwenc --from-ply`: compress a model trained elsewhere, optionally checking the decoded
-/// stream's renders against the model's own on an orbit.
 /// Fails now, rather than after training, if an output cannot be written; creates the
 /// folders of renders.
 fn check_outputs(args: &EncodeArgs) -> Result<()> {
@@ -473,6 +471,8 @@ fn check_outputs(args: &EncodeArgs) -> Result<()> {
     Ok(())
 }
 
+/// `pwenc --from-ply`: compress a model trained elsewhere, optionally checking the decoded
+/// stream's renders against the model's own on an orbit.
 fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
     let output = args.output.as_deref().context("--from-ply needs -o/--output for the stream")?;
     let gaussians = read_ply(ply)?;
@@ -489,7 +489,6 @@ fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
         let decoded = renders(&compressed.decoded.gaussians, &cameras, &options);
         orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
         if let Some(dir) = &args.orbit_renders {
-            std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
             for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {
                 input.save_png(&dir.join(format!("orbit_{i:03}_input.png")))?;
                 decoded.save_png(&dir.join(format!("orbit_{i:03}_decoded.png")))?;
