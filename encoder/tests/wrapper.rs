@@ -95,20 +95,25 @@ fn ablations_and_bad_wrapper_options() {
     let config = decoded.wrapper.unwrap().config;
     assert!(!config.noise && config.plucker && config.width == 5);
 
-    // No weights anywhere: not in a shared folder, not in a cache.
+    // No weights anywhere: not in a shared folder, not in a cache. Runs pwenc with `args`, which
+    // must fail mentioning `needle`, and returns what it printed on stderr.
     let empty = dir("no-weights");
-    let bad = |extra: &[&str], needle: &str| {
-        let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
-        args.extend(extra);
+    let fails = |args: &[&str], needle: &str| {
         let out = Command::new(env!("CARGO_BIN_EXE_pwenc"))
-            .args(&args)
+            .args(args)
             .env("PWGS_WEIGHTS_DIR", &empty)
             .env("XDG_CACHE_HOME", &empty)
             .env("HOME", &empty)
             .output()
             .unwrap();
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && stderr.contains(needle), "{extra:?}: {stderr}");
+        let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(!out.status.success() && stderr.contains(needle), "{args:?}: {stderr}");
+        stderr
+    };
+    let bad = |extra: &[&str], needle: &str| {
+        let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
+        args.extend(extra);
+        fails(&args, needle);
     };
     bad(&["--wd-features", "pixels", "--wd-crop", "20"], "--wd-crop");
     bad(&["--wd-features", "pixels", "--wrapper-split", "1.5"], "fraction");
@@ -121,9 +126,7 @@ fn ablations_and_bad_wrapper_options() {
     let early = |scene: &str, extra: &[&str], needle: &str| {
         let mut args = vec![scene, "--iters", "200", "--wrapper"];
         args.extend(extra);
-        let out = Command::new(env!("CARGO_BIN_EXE_pwenc")).args(&args).env("HOME", &empty).output().unwrap();
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success() && stderr.contains(needle), "{extra:?}: {stderr}");
+        let stderr = fails(&args, needle);
         assert!(!stderr.contains("iteration 100/200"), "{extra:?} failed only after stage 1: {stderr}");
     };
     early(&dir("scene"), &["--weights", &empty], "VGG16");
