@@ -11,8 +11,8 @@ use glam::{Mat3, Mat4, Vec3, Vec4};
 /// Why a camera was rejected.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum CameraError {
-    #[error("image size {width}x{height} is not positive")]
-    EmptyImage { width: u32, height: u32 },
+    #[error("image size {width}x{height} is outside 1..={MAX_SIDE} per side")]
+    BadSize { width: u32, height: u32 },
     #[error("intrinsic `{name}` = {value} must be finite and positive")]
     BadFocal { name: &'static str, value: f32 },
     #[error("principal point ({cx}, {cy}) is not finite")]
@@ -29,6 +29,11 @@ pub enum CameraError {
 /// stored with 6-9 significant digits, so a tolerance far above f32 epsilon is needed, while a
 /// matrix carrying scale or shear is still rejected.
 const ROTATION_TOLERANCE: f32 = 1e-3;
+
+/// Largest image side, in pixels (SPEC.md annex A). It keeps pixel coordinates exact in f32
+/// and every per-pixel index (noise pyramid, tiles) far from overflow, whatever a camera file
+/// or an image header claims.
+pub const MAX_SIDE: u32 = 65535;
 
 /// Pinhole intrinsics in pixels at the rendered resolution.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,13 +62,14 @@ pub struct Camera {
 }
 
 impl Camera {
-    /// Builds a camera and checks that it is usable: positive size and focal lengths, finite
-    /// principal point and pose, and a proper rotation (re-orthonormalized afterwards so that
-    /// rounding in the source file does not leak into rendering).
+    /// Builds a camera and checks that it is usable: a size of 1 to [`MAX_SIDE`] per side,
+    /// positive focal lengths, finite principal point and pose, and a proper rotation
+    /// (re-orthonormalized afterwards so that rounding in the source file does not leak into
+    /// rendering).
     pub fn new(intrinsics: Intrinsics, rotation: Mat3, translation: Vec3) -> Result<Self, CameraError> {
         let Intrinsics { width, height, fx, fy, cx, cy } = intrinsics;
-        if width == 0 || height == 0 {
-            return Err(CameraError::EmptyImage { width, height });
+        if !((1..=MAX_SIDE).contains(&width) && (1..=MAX_SIDE).contains(&height)) {
+            return Err(CameraError::BadSize { width, height });
         }
         for (name, value) in [("fx", fx), ("fy", fy)] {
             // Phrased positively so that NaN fails the check.
@@ -306,8 +312,13 @@ mod tests {
         let r = Mat3::IDENTITY;
         assert!(matches!(
             Camera::new(Intrinsics { width: 0, height: 4, fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 }, r, Vec3::ZERO),
-            Err(CameraError::EmptyImage { .. })
+            Err(CameraError::BadSize { .. })
         ));
+        // An image header may claim any width; the limit keeps every pixel index in range.
+        let huge = Intrinsics { width: MAX_SIDE + 1, height: 4, fx: 1.0, fy: 1.0, cx: 0.0, cy: 0.0 };
+        assert_eq!(Camera::new(huge, r, Vec3::ZERO), Err(CameraError::BadSize { width: MAX_SIDE + 1, height: 4 }));
+        let widest = Intrinsics { width: MAX_SIDE, ..huge };
+        assert!(Camera::new(widest, r, Vec3::ZERO).is_ok());
         assert!(matches!(
             Camera::new(Intrinsics { width: 4, height: 4, fx: f32::NAN, fy: 1.0, cx: 0.0, cy: 0.0 }, r, Vec3::ZERO),
             Err(CameraError::BadFocal { .. })

@@ -257,10 +257,23 @@ fn with_payload(bytes: &[u8], tag: Tag, edit: impl Fn(&mut Vec<u8>)) -> Vec<u8> 
 fn absurd_declared_sizes_are_refused_quickly() {
     let bytes = encode(&random_content(200, 1, 5));
     let start = std::time::Instant::now();
-    // The header declares the maximum count, far more than the octree holds.
-    let huge = with_payload(&bytes, Tag::HEAD, |p| p[1..5].copy_from_slice(&MAX_GAUSSIANS.to_le_bytes()));
-    let err = stream::decode(&huge).unwrap_err().to_string();
+    // The header declares more Gaussians than the octree holds, within the length bound.
+    let more = with_payload(&bytes, Tag::HEAD, |p| p[1..5].copy_from_slice(&1000u32.to_le_bytes()));
+    let err = stream::decode(&more).unwrap_err().to_string();
     assert!(err.contains("POSN"), "{err}");
+    // The maximum count in a stream padded to 40 KB: more than one Gaussian per byte.
+    let mut sections: Vec<(Tag, Vec<u8>)> = pwgs_bitstream::Container::parse(&bytes)
+        .unwrap()
+        .sections
+        .iter()
+        .map(|s| (s.tag, s.payload.to_vec()))
+        .collect();
+    sections[0].1[1..5].copy_from_slice(&MAX_GAUSSIANS.to_le_bytes());
+    sections[0].1[5] = 3;
+    sections.push((Tag(*b"pad "), vec![0; 40_000]));
+    let huge = pwgs_bitstream::write_container(&sections);
+    let err = stream::decode(&huge).unwrap_err().to_string();
+    assert!(err.contains("HEAD") && err.contains("gaussian count 16777216 exceeds the stream's length"), "{err}");
     let over = with_payload(&bytes, Tag::HEAD, |p| p[1..5].copy_from_slice(&(MAX_GAUSSIANS + 1).to_le_bytes()));
     assert!(stream::decode(&over).unwrap_err().to_string().contains("exceeds the limit"));
     // A frequency table claiming 2^32 - 1 symbols.
@@ -298,4 +311,72 @@ fn structural_errors_name_the_problem() {
     let bad_step = with_payload(&bytes, Tag(*b"SCAL"), |p| p[..4].copy_from_slice(&(-1.0f32).to_le_bytes()));
     let err = stream::decode(&bad_step).unwrap_err().to_string();
     assert!(err.contains("SCAL") && err.contains("step"), "{err}");
+}
+
+/// A stream whose first SCAL table has `lo = i32::MAX - n + 1`: `lo + n` overflows i32 (a
+/// panic in the dev profile, and an accepted table in release, before the check was widened).
+#[test]
+fn a_table_reaching_past_i32_is_refused() {
+    let bytes = encode(&random_content(40, 0, 8));
+    for n in [1u32, 4096] {
+        let scal = with_payload(&bytes, Tag(*b"SCAL"), |p| {
+            let mut w = pwgs_bitstream::FieldWriter::new();
+            w.f32(0.05);
+            for _ in 0..3 {
+                w.signed_varint(i32::MAX - n as i32 + 1);
+                w.varint(n);
+                w.varint(65536 - n);
+                (0..n).for_each(|_| w.varint(1));
+            }
+            *p = w.into_bytes();
+        });
+        let err = stream::decode(&scal).unwrap_err().to_string();
+        assert!(err.contains("SCAL") && err.contains("table lo") && err.contains("beyond"), "{err}");
+    }
+}
+
+#[test]
+fn chunks_must_hold_exactly_their_symbols() {
+    let bytes = encode(&random_content(60, 1, 9));
+    for tag in ["POSN", "SCAL", "ROTN", "OPAC", "COLR", "SHRS"] {
+        let tag = Tag(tag.as_bytes().try_into().unwrap());
+        let padded = with_payload(&bytes, tag, |p| p.extend([0; 8]));
+        let err = stream::decode(&padded).unwrap_err().to_string();
+        assert!(err.contains(&tag.to_string()) && err.contains("after the last symbol"), "{tag}: {err}");
+    }
+    // With N = 0 every chunk must be empty.
+    let empty = encode(&random_content(0, 1, 9));
+    assert_eq!(stream::decode(&empty).unwrap().gaussians.len(), 0);
+    for tag in ["POSN", "OPAC"] {
+        let tag = Tag(tag.as_bytes().try_into().unwrap());
+        let err = stream::decode(&with_payload(&empty, tag, |p| p.extend([1, 2, 3, 4]))).unwrap_err().to_string();
+        assert!(err.contains(&tag.to_string()) && err.contains("unread"), "{tag}: {err}");
+    }
+}
+
+#[test]
+fn sh_rest_must_be_absent_at_degree_zero_and_checks_run_in_spec_order() {
+    let degree0 = encode(&random_content(30, 0, 10));
+    let degree1 = encode(&random_content(30, 1, 10));
+    let shrs = pwgs_bitstream::Container::parse(&degree1).unwrap().section(Tag(*b"SHRS")).unwrap().payload.to_vec();
+    let sections = |bytes: &[u8]| -> Vec<(Tag, Vec<u8>)> {
+        pwgs_bitstream::Container::parse(bytes).unwrap().sections.iter().map(|s| (s.tag, s.payload.to_vec())).collect()
+    };
+    let mut with_shrs = sections(&degree0);
+    with_shrs.push((Tag(*b"SHRS"), shrs));
+    let err = stream::decode(&pwgs_bitstream::write_container(&with_shrs)).unwrap_err().to_string();
+    assert!(err.contains("SHRS") && err.contains("SH degree is 0"), "{err}");
+    // A missing section is reported before a corrupt POSN is decoded.
+    let mut broken = sections(&degree1);
+    broken.retain(|(t, _)| *t != Tag(*b"COLR"));
+    broken[1].1.truncate(20);
+    assert_eq!(
+        stream::decode(&pwgs_bitstream::write_container(&broken)).unwrap_err(),
+        DecodeError::MissingSection(Tag(*b"COLR"))
+    );
+    // Of two corrupt attribute blocks, the first in section order is reported.
+    let two = with_payload(&degree1, Tag(*b"SHRS"), |p| p.truncate(2));
+    let two = with_payload(&two, Tag(*b"ROTN"), |p| p.truncate(2));
+    let err = stream::decode(&two).unwrap_err().to_string();
+    assert!(err.contains("ROTN"), "{err}");
 }

@@ -25,6 +25,8 @@ pub const TOTAL: u32 = 1 << PRECISION;
 /// Most in-range symbols a table may have (the escape symbol comes on top).
 pub const MAX_TABLE_SYMBOLS: u32 = 4096;
 /// Quantized values are integers of magnitude below 2^24, so `q as f32 * step` is exact in `q`.
+/// This holds for in-range and escaped values alike: a table covers at most
+/// `-(2^24 - 1) ..= 2^24 - 1`.
 pub const MAX_MAGNITUDE: i32 = 1 << 24;
 /// Bounds of an adaptive bit probability, in units of 2^-16: a bit never costs less than
 /// ~0.0056 bits, which bounds how many symbols a section of a given size can produce.
@@ -48,6 +50,10 @@ pub enum EntropyError {
     Invalid,
     #[error("escaped value {0} is outside +/-2^24")]
     EscapeOutOfRange(i64),
+    #[error("escaped value {0} lies inside the table's range (it must be coded as its own symbol)")]
+    EscapeInRange(i64),
+    #[error("{0} unread bytes after the last symbol")]
+    Unread(usize),
 }
 
 /// A static categorical model over `lo .. lo + n` plus one escape symbol (index `n`): a value
@@ -62,15 +68,10 @@ pub struct FrequencyTable {
 
 impl FrequencyTable {
     /// Builds a table from its frequencies (`n` in-range symbols then the escape), each at least
-    /// 1, summing to [`TOTAL`].
+    /// 1, summing to [`TOTAL`], over `lo .. lo + n` within `-(2^24 - 1) ..= 2^24 - 1`.
     pub fn from_frequencies(lo: i32, frequencies: &[u32]) -> Result<Self, String> {
         let n = frequencies.len().checked_sub(1).ok_or("a table needs the escape frequency")?;
-        if n == 0 || n as u32 > MAX_TABLE_SYMBOLS {
-            return Err(format!("{n} symbols, expected 1..={MAX_TABLE_SYMBOLS}"));
-        }
-        if lo < -MAX_MAGNITUDE || lo + n as i32 > MAX_MAGNITUDE {
-            return Err(format!("range {lo}..{} exceeds +/-2^24", lo + n as i32));
-        }
+        check_range(lo, n)?;
         let mut cdf = Vec::with_capacity(frequencies.len() + 1);
         let mut sum = 0u32;
         cdf.push(0);
@@ -125,9 +126,7 @@ impl FrequencyTable {
     pub fn read(r: &mut FieldReader) -> Result<Self, FieldError> {
         let lo = r.signed_varint("table lo")?;
         let n = r.varint("table size")?;
-        if n == 0 || n > MAX_TABLE_SYMBOLS {
-            return Err(r.error("table size", format!("{n} symbols, expected 1..={MAX_TABLE_SYMBOLS}")));
-        }
+        check_range(lo, n as usize).map_err(|problem| r.error("table lo/size", problem))?;
         let frequencies = (0..=n).map(|_| r.varint("table frequency")).collect::<Result<Vec<_>, _>>()?;
         Self::from_frequencies(lo, &frequencies).map_err(|problem| r.error("table frequencies", problem))
     }
@@ -136,13 +135,27 @@ impl FrequencyTable {
     pub fn cost_bits(&self, value: i32) -> f64 {
         let (symbol, escaped) = self.symbol_of(value);
         let p = f64::from(self.cdf[symbol as usize + 1] - self.cdf[symbol as usize]) / f64::from(TOTAL);
-        -p.log2() + if escaped { 32.0 } else { 0.0 }
+        -p.log2() + if escaped { 32.0 } else { 0.0 } // platform math allowed: a rate report only
     }
 
     fn symbol_of(&self, value: i32) -> (u32, bool) {
         let i = i64::from(value) - i64::from(self.lo);
         if (0..i64::from(self.symbols())).contains(&i) { (i as u32, false) } else { (self.escape(), true) }
     }
+}
+
+/// Checks that a table of `n` symbols from `lo` is within the spec's bounds: 1 to
+/// [`MAX_TABLE_SYMBOLS`] symbols covering values of magnitude below 2^24. Computed in i64: `lo`
+/// comes from the stream and may be near `i32::MAX`.
+fn check_range(lo: i32, n: usize) -> Result<(), String> {
+    if n == 0 || n > MAX_TABLE_SYMBOLS as usize {
+        return Err(format!("{n} symbols, expected 1..={MAX_TABLE_SYMBOLS}"));
+    }
+    let end = i64::from(lo) + n as i64;
+    if i64::from(lo) <= -i64::from(MAX_MAGNITUDE) || end > i64::from(MAX_MAGNITUDE) {
+        return Err(format!("range {lo}..{end} reaches beyond +/-(2^24 - 1)"));
+    }
+    Ok(())
 }
 
 /// The window `[lo, lo + n)` of at most [`MAX_TABLE_SYMBOLS`] integers covering the most of
@@ -302,35 +315,42 @@ impl SymbolEncoder {
     }
 }
 
+/// How far a [`WordReader`] got: bytes read, and words requested past the end.
+#[derive(Debug, Clone, Copy, Default)]
+struct Progress {
+    read: usize,
+    overrun: u32,
+}
+
 /// Reads 32-bit little-endian words from a byte slice, counting reads past its end.
 struct WordReader<'a> {
     bytes: &'a [u8],
-    at: usize,
     /// Shared with the [`SymbolDecoder`], which cannot reach into constriction's decoder.
-    overrun: Rc<Cell<u32>>,
+    progress: Rc<Cell<Progress>>,
 }
 
 impl ReadWords<u32, Queue> for WordReader<'_> {
     type ReadError = std::convert::Infallible;
 
     fn read(&mut self) -> Result<Option<u32>, Self::ReadError> {
-        match self.bytes.get(self.at..self.at + 4) {
-            Some(w) => {
-                self.at += 4;
-                Ok(Some(u32::from_le_bytes(w.try_into().expect("4 bytes"))))
-            }
-            None => {
-                self.overrun.set(self.overrun.get().saturating_add(1));
-                Ok(None)
-            }
+        let mut p = self.progress.get();
+        let word = self.bytes.get(p.read..).and_then(|rest| rest.first_chunk::<4>()).copied();
+        match word {
+            Some(_) => p.read += 4,
+            None => p.overrun = p.overrun.saturating_add(1),
         }
+        self.progress.set(p);
+        Ok(word.map(u32::from_le_bytes))
     }
 }
 
 /// Reads symbols from one range-coded chunk, with the models the encoder used.
 pub struct SymbolDecoder<'a> {
     coder: RangeDecoder<u32, u64, WordReader<'a>>,
-    overrun: Rc<Cell<u32>>,
+    progress: Rc<Cell<Progress>>,
+    len: usize,
+    /// Whether any symbol was decoded: a chunk that holds none must be empty.
+    started: bool,
 }
 
 impl<'a> SymbolDecoder<'a> {
@@ -338,15 +358,16 @@ impl<'a> SymbolDecoder<'a> {
         if !bytes.len().is_multiple_of(4) {
             return Err(EntropyError::Unaligned(bytes.len()));
         }
-        let overrun = Rc::new(Cell::new(0));
-        let reader = WordReader { bytes, at: 0, overrun: Rc::clone(&overrun) };
+        let progress = Rc::new(Cell::new(Progress::default()));
+        let reader = WordReader { bytes, progress: Rc::clone(&progress) };
         let coder = RangeDecoder::with_backend(reader).map_err(|_| EntropyError::Invalid)?;
-        Ok(Self { coder, overrun })
+        Ok(Self { coder, progress, len: bytes.len(), started: false })
     }
 
     fn get(&mut self, model: Model) -> Result<u32, EntropyError> {
+        self.started = true;
         let symbol = self.coder.decode_symbol(model).map_err(|_| EntropyError::Invalid)?;
-        if self.overrun.get() > OVERRUN_ALLOWANCE {
+        if self.overrun() > OVERRUN_ALLOWANCE {
             return Err(EntropyError::Exhausted);
         }
         Ok(symbol)
@@ -364,6 +385,9 @@ impl<'a> SymbolDecoder<'a> {
         if value.abs() >= i64::from(MAX_MAGNITUDE) {
             return Err(EntropyError::EscapeOutOfRange(value));
         }
+        if !table.symbol_of(value as i32).1 {
+            return Err(EntropyError::EscapeInRange(value));
+        }
         Ok(value as i32)
     }
 
@@ -375,7 +399,19 @@ impl<'a> SymbolDecoder<'a> {
 
     /// Words requested past the end of the data so far (at most 2 for a correct stream).
     pub fn overrun(&self) -> u32 {
-        self.overrun.get()
+        self.progress.get().overrun
+    }
+
+    /// Ends the chunk after its last symbol (SPEC.md section 5.2): a chunk holds only what its
+    /// symbols need, so every word must have been read, and a chunk from which nothing was
+    /// decoded must be empty (an encoder writes no word then). Trailing data is refused
+    /// rather than ignored, so a section ending in a chunk has no room for appended fields.
+    pub fn finish(self) -> Result<(), EntropyError> {
+        let read = if self.started { self.progress.get().read } else { 0 };
+        match self.len - read {
+            0 => Ok(()),
+            unread => Err(EntropyError::Unread(unread)),
+        }
     }
 }
 
@@ -429,6 +465,68 @@ mod tests {
         assert!(FrequencyTable::from_frequencies(0, &[TOTAL - 2, 1]).is_err(), "wrong sum");
         assert!(FrequencyTable::from_frequencies(MAX_MAGNITUDE - 1, &[TOTAL - 2, 1, 1]).is_err(), "range");
         assert!(FrequencyTable::from_frequencies(-3, &[TOTAL - 2, 1, 1]).is_ok());
+        // The extremes: every in-range value must have |v| < 2^24, and `lo + n` must not wrap.
+        assert!(FrequencyTable::from_frequencies(-MAX_MAGNITUDE, &[TOTAL - 1, 1]).is_err(), "|lo| = 2^24");
+        assert!(FrequencyTable::from_frequencies(-(MAX_MAGNITUDE - 1), &[TOTAL - 1, 1]).is_ok());
+        assert!(FrequencyTable::from_frequencies(MAX_MAGNITUDE - 2, &[TOTAL - 2, 1, 1]).is_ok());
+        for n in [1usize, 2, 4096] {
+            let mut freqs = vec![1; n + 1];
+            freqs[0] = TOTAL - n as u32;
+            let lo = i32::MAX - n as i32 + 1;
+            let error = FrequencyTable::from_frequencies(lo, &freqs).unwrap_err();
+            assert!(error.contains("beyond"), "{error}");
+        }
+    }
+
+    /// Codes `values` with `table` and returns the chunk.
+    fn chunk(table: &FrequencyTable, values: &[i32]) -> Vec<u8> {
+        let mut enc = SymbolEncoder::new();
+        values.iter().for_each(|&v| enc.value(table, v));
+        enc.finish()
+    }
+
+    #[test]
+    fn chunks_are_consumed_exactly() {
+        let mut rng = SplitMix64(5);
+        let table = FrequencyTable::fit(&(-40..40).collect::<Vec<_>>());
+        assert!(chunk(&table, &[]).is_empty(), "no symbols, no words");
+        assert!(SymbolDecoder::new(&[]).unwrap().finish().is_ok());
+        assert_eq!(SymbolDecoder::new(&[0; 8]).unwrap().finish(), Err(EntropyError::Unread(8)), "symbols expected none");
+        for len in [1usize, 2, 3, 5, 17, 100, 1000, 5000] {
+            for spread in [1.0, 30.0, 1e5] {
+                let values: Vec<i32> = (0..len).map(|_| rng.uniform(-spread, spread) as i32).collect();
+                let coded = chunk(&table, &values);
+                let mut dec = SymbolDecoder::new(&coded).unwrap();
+                values.iter().for_each(|&v| assert_eq!(dec.value(&table).unwrap(), v));
+                let overrun = dec.overrun();
+                assert!(overrun <= 1, "constriction writes 1 or 2 words of final state");
+                assert_eq!(dec.finish(), Ok(()), "{len} values of spread {spread}");
+                // An appended zero word is read in place of a word past the end (the same value,
+                // so the same symbols) or, when there was none, left unread: an error.
+                let mut padded = coded.clone();
+                padded.extend([0; 4]);
+                let mut dec = SymbolDecoder::new(&padded).unwrap();
+                values.iter().for_each(|&v| assert_eq!(dec.value(&table).unwrap(), v));
+                let expected = if overrun == 1 { Ok(()) } else { Err(EntropyError::Unread(4)) };
+                assert_eq!(dec.finish(), expected, "{len} values of spread {spread}");
+            }
+        }
+    }
+
+    #[test]
+    fn an_escaped_value_inside_the_range_is_refused() {
+        let table = FrequencyTable::from_frequencies(-2, &[TOTAL - 4, 1, 1, 1, 1]).unwrap();
+        // The escape symbol, then the zig-zag form of 1 (inside -2..2) in two raw halves.
+        let mut enc = SymbolEncoder::new();
+        enc.put(table.escape(), Model(ModelKind::Table(&table)));
+        enc.put(2, Model(ModelKind::Raw16));
+        enc.put(0, Model(ModelKind::Raw16));
+        let coded = enc.finish();
+        assert_eq!(SymbolDecoder::new(&coded).unwrap().value(&table), Err(EntropyError::EscapeInRange(1)));
+        // The same value escaped from a table that does not cover it decodes.
+        let narrow = FrequencyTable::from_frequencies(5, &[TOTAL - 1, 1]).unwrap();
+        let coded = chunk(&narrow, &[1]);
+        assert_eq!(SymbolDecoder::new(&coded).unwrap().value(&narrow), Ok(1));
     }
 
     #[test]

@@ -88,7 +88,7 @@ impl Decoded {
     }
 }
 
-/// Parses, verifies and decodes a stream.
+/// Parses, verifies and decodes a stream, checking in SPEC.md's order (section 6.4).
 pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     let (container, header) = parse(bytes)?;
     for section in &container.sections {
@@ -96,6 +96,7 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
             return Err(DecodeError::UnknownCriticalSection(section.tag));
         }
     }
+    check_count_against_length(&header, bytes.len())?;
     let BaseKind::Plain3dgs = header.base;
     let content = PlainGaussians::read_sections(&container, header.gaussian_count as usize, header.sh_degree)?;
     let gaussians = content.dequantize();
@@ -104,6 +105,21 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
         None => None,
     };
     Ok(Decoded { header, content, gaussians, wrapper })
+}
+
+/// SPEC.md section 9: a stream may declare at most one Gaussian per byte of its length. Every
+/// symbol decoded and every byte allocated afterwards is proportional to the count, so this
+/// bounds a decoder's work and memory by the size of what it was handed (an adaptive bit can
+/// cost far less than a bit, so the coded data alone would let a few KB declare millions).
+fn check_count_against_length(header: &Header, len: usize) -> Result<(), DecodeError> {
+    let count = u64::from(header.gaussian_count);
+    if count > len as u64 {
+        return Err(DecodeError::invalid(
+            Tag::HEAD,
+            format!("gaussian count {count} exceeds the stream's length of {len} bytes (at most one Gaussian per byte)"),
+        ));
+    }
+    Ok(())
 }
 
 /// The container and header of a stream, every CRC verified, without decoding the content.

@@ -21,6 +21,8 @@ pub enum OctreeError {
     CountMismatch { found: usize, expected: usize },
     #[error("{count} points share one grid cell; at most {MAX_POINTS_PER_VOXEL} may (use a finer grid)")]
     VoxelOverflow { count: usize },
+    #[error("octree depth {0} is outside 1..={MAX_DEPTH}")]
+    Depth(u8),
 }
 
 /// The adaptive contexts of the occupancy and count bits (SPEC.md section 6.1).
@@ -122,15 +124,20 @@ pub fn encode(points: &[[u32; 3]], depth: u8) -> Result<(Vec<u8>, Vec<usize>), O
     Ok((coder.finish(), order))
 }
 
-/// Decodes exactly `count` points. Memory stays within `count`: every node holds at least one
-/// point, so a level with more nodes than `count` is an error before anything is allocated.
+/// Decodes exactly `count` points from a chunk that holds exactly them. Memory stays within
+/// `count`: every node holds at least one point, so a level with more nodes than `count` is an
+/// error before anything is allocated. (Work is bounded by `count` too; the caller bounds
+/// `count` by the stream's size, SPEC.md section 9.)
 pub fn decode(bytes: &[u8], depth: u8, count: usize) -> Result<Vec<[u32; 3]>, OctreeError> {
-    assert!((1..=MAX_DEPTH).contains(&depth), "octree depth {depth} outside 1..={MAX_DEPTH}");
+    if !(1..=MAX_DEPTH).contains(&depth) {
+        return Err(OctreeError::Depth(depth));
+    }
+    let mut coder = SymbolDecoder::new(bytes)?;
     if count == 0 {
+        coder.finish()?;
         return Ok(vec![]);
     }
     let mut contexts = Contexts::new(depth);
-    let mut coder = SymbolDecoder::new(bytes)?;
     // Each node: its coordinates so far and its parent's class.
     let mut nodes: Vec<([u32; 3], usize)> = vec![([0; 3], 3)];
     for level in 0..depth as usize {
@@ -174,6 +181,7 @@ pub fn decode(bytes: &[u8], depth: u8, count: usize) -> Result<Vec<[u32; 3]>, Oc
     if points.len() != count {
         return Err(OctreeError::CountMismatch { found: points.len(), expected: count });
     }
+    coder.finish()?;
     Ok(points)
 }
 
@@ -227,6 +235,18 @@ mod tests {
         let (bytes, _) = encode(&points, 10).unwrap();
         assert!(matches!(decode(&bytes, 10, 299), Err(OctreeError::TooManyPoints { .. })));
         assert!(matches!(decode(&bytes, 10, 301), Err(OctreeError::CountMismatch { found: 300, expected: 301 })));
+    }
+
+    #[test]
+    fn bad_depths_trailing_words_and_chunks_without_points_are_errors() {
+        assert_eq!(decode(&[], 0, 1), Err(OctreeError::Depth(0)));
+        assert_eq!(decode(&[], MAX_DEPTH + 1, 1), Err(OctreeError::Depth(MAX_DEPTH + 1)));
+        let (bytes, _) = encode(&random_points(50, 8, 3), 8).unwrap();
+        let mut padded = bytes.clone();
+        padded.extend([0; 8]);
+        assert_eq!(decode(&padded, 8, 50), Err(OctreeError::Entropy(EntropyError::Unread(4))), "two words padded");
+        assert_eq!(decode(&[], 8, 0), Ok(vec![]));
+        assert_eq!(decode(&bytes, 8, 0), Err(OctreeError::Entropy(EntropyError::Unread(bytes.len()))));
     }
 
     #[test]

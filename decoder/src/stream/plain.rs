@@ -145,26 +145,34 @@ impl PlainGaussians {
         Ok(sections)
     }
 
-    /// Reads and decodes the content sections. Positions come first: the octree proves with its
-    /// own coded data that the declared count is real before anything is allocated for it.
-    /// The attribute sections then decode in parallel (the result does not depend on the
-    /// thread count).
+    /// Reads and decodes the content sections, checking in SPEC.md's order (section 6.4):
+    /// which sections are present, then positions, then the attribute blocks. `count` must
+    /// already be bounded by the stream's size. The attribute sections decode in parallel;
+    /// the first failing one in section order is reported, and the result does not depend on
+    /// the thread count.
     pub(super) fn read_sections(container: &Container, count: usize, sh_degree: u32) -> Result<Self, DecodeError> {
         let payload = |tag: Tag| container.section(tag).map(|s| s.payload).ok_or(DecodeError::MissingSection(tag));
         let rest = (sh_coeff_count(sh_degree) - 1) * 3;
-        let (grid, positions) = read_positions(payload(POSITIONS)?, count)?;
-        let blocks: [(Tag, usize, usize); 5] =
-            [(SCALES, 1, 3), (ROTATIONS, 1, 4), (OPACITIES, 1, 1), (COLORS, 1, 3), (SH_REST, sh_degree as usize, rest)];
+        // (tag, steps, channels) of every block, SHRS only when there are SH bands.
+        let blocks: Vec<(Tag, usize, usize)> =
+            [(SCALES, 1, 3), (ROTATIONS, 1, 4), (OPACITIES, 1, 1), (COLORS, 1, 3), (SH_REST, sh_degree as usize, rest)]
+                .into_iter()
+                .filter(|&(_, _, channels)| channels > 0)
+                .collect();
+        let positions_payload = payload(POSITIONS)?;
+        let block_payloads = blocks.iter().map(|&(tag, ..)| payload(tag)).collect::<Result<Vec<_>, _>>()?;
+        if rest == 0 && container.section(SH_REST).is_some() {
+            return Err(DecodeError::invalid(SH_REST, "present, but the SH degree is 0 (the section must be absent)"));
+        }
+        let (grid, positions) = read_positions(positions_payload, count)?;
         let decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
-            .map(|&(tag, steps, channels)| match channels {
-                0 => Ok((vec![], vec![])),
-                _ => read_block(tag, payload(tag)?, steps, channels, count),
-            })
+            .zip(block_payloads)
+            .map(|(&(tag, steps, channels), bytes)| read_block(tag, bytes, steps, channels, count))
             .collect();
-        let Ok([scales, rotations, opacities, colors, sh_rest]) = <[_; 5]>::try_from(decoded) else {
-            unreachable!("one result per block")
-        };
+        let mut decoded = decoded.into_iter();
+        let mut next = || decoded.next().unwrap_or(Ok((vec![], vec![])));
+        let (scales, rotations, opacities, colors, sh_rest) = (next(), next(), next(), next(), next());
         let (scale_steps, scales) = scales?;
         let (rotation_steps, rotation_values) = rotations?;
         let (opacity_steps, opacity_logits) = opacities?;
@@ -249,16 +257,14 @@ fn read_block(tag: Tag, payload: &[u8], steps: usize, channels: usize, count: us
         step_values.push(s);
     }
     let tables = (0..channels).map(|_| FrequencyTable::read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
-    let coded = r.rest();
-    if count == 0 {
-        return Ok((step_values, vec![]));
-    }
-    let mut coder = SymbolDecoder::new(coded).map_err(|e| DecodeError::coded(tag, e))?;
+    let coded = |e: EntropyError| DecodeError::coded(tag, e);
+    let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
     let mut values = Vec::with_capacity(count * channels);
     for _ in 0..count {
         for table in &tables {
-            values.push(coder.value(table).map_err(|e: EntropyError| DecodeError::coded(tag, e))?);
+            values.push(coder.value(table).map_err(coded)?);
         }
     }
+    coder.finish().map_err(coded)?;
     Ok((step_values, values))
 }

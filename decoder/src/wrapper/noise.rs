@@ -70,7 +70,10 @@ pub struct NoiseGrids {
 }
 
 impl NoiseGrids {
-    /// Draws the grids for a `width` x `height` image (sides below 2^24).
+    /// Draws the grids for a `width` x `height` image. The sample index of SPEC.md 11.1 needs
+    /// sides below 2^24; a [`Camera`](crate::camera::Camera) is at most
+    /// [`MAX_SIDE`](crate::camera::MAX_SIDE) wide, so views never come near it and the assertion
+    /// only guards direct callers.
     pub fn new(seed: u64, width: usize, height: usize) -> Self {
         assert!(width > 0 && height > 0 && width < 1 << 24 && height < 1 << 24, "noise pyramid size");
         let grids = (0..NOISE_LEVELS)
