@@ -29,13 +29,15 @@ pub struct QuantizerSettings {
 }
 
 impl QuantizerSettings {
-    /// Settings for a quality level in `0..=MAX_QUALITY`.
+    /// Settings for a quality level in `0..=MAX_QUALITY`. Computed exactly (no platform
+    /// `powf`), so a model quantizes to the same stream on every machine.
     pub fn for_quality(quality: u8) -> Self {
-        let q = f32::from(quality.min(MAX_QUALITY));
-        let d = f32::from(DEFAULT_QUALITY);
-        let factor = 2f32.powf((d - q) / 2.0);
+        let q = i32::from(quality.min(MAX_QUALITY));
+        let d = i32::from(DEFAULT_QUALITY);
+        let factor = sqrt2_power(d - q);
         Self {
-            position_bits: (12.0 + (q - d) / 2.0).round() as u8,
+            // 12 + (q - d) / 2, halves rounded up.
+            position_bits: (25 + q - d).div_euclid(2) as u8,
             log_scale_step: 0.16 * factor,
             rotation_step: 0.016 * factor,
             opacity_step: 0.4 * factor,
@@ -43,6 +45,12 @@ impl QuantizerSettings {
             band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
         }
     }
+}
+
+/// `sqrt(2)^k` as f32: a power of two built from its exponent, times `SQRT_2` when `k` is odd.
+fn sqrt2_power(k: i32) -> f32 {
+    let two_power = f32::from_bits(((127 + k.div_euclid(2)) as u32) << 23);
+    if k.rem_euclid(2) == 1 { two_power * std::f32::consts::SQRT_2 } else { two_power }
 }
 
 impl Default for QuantizerSettings {
@@ -95,7 +103,10 @@ impl StreamContext {
         let mut d: Vec<f32> = g
             .means
             .iter()
-            .map(|m| ((m[0] - center[0]).powi(2) + (m[1] - center[1]).powi(2) + (m[2] - center[2]).powi(2)).sqrt())
+            .map(|m| {
+                let [x, y, z] = std::array::from_fn(|a| m[a] - center[a]);
+                (x * x + y * y + z * z).sqrt()
+            })
             .collect();
         d.sort_by(f32::total_cmp);
         let scale = (d[(d.len() * 95 / 100).min(d.len() - 1)] * 1.1).max(1e-6);
@@ -163,12 +174,15 @@ fn quantize_value(v: f32, step: f32) -> i32 {
     (v / step).round().clamp(-limit, limit) as i32
 }
 
+/// sigmoid(x) >= 1/255  <=>  x >= ln(1/254) = -5.537334267...: the binary32 nearest to it,
+/// written out so that no platform `ln` decides which Gaussians are dropped.
+const VISIBLE_LOGIT: f32 = -5.537_334_4;
+
 /// Indices of Gaussians that can show in a render: the rasterizer skips any alpha below 1/255,
 /// and alpha never exceeds the opacity, so lower opacities never contribute.
 fn visible_after_quantization(g: &Gaussians, opacity_step: f32) -> Vec<usize> {
-    let threshold_logit = (1.0f32 / 254.0).ln(); // sigmoid(x) >= 1/255  <=>  x >= ln(1/254)
     (0..g.len())
-        .filter(|&i| quantize_value(g.opacity_logits[i], opacity_step) as f32 * opacity_step >= threshold_logit)
+        .filter(|&i| quantize_value(g.opacity_logits[i], opacity_step) as f32 * opacity_step >= VISIBLE_LOGIT)
         .collect()
 }
 
@@ -215,7 +229,7 @@ fn quantize_positions(g: &Gaussians, visible: &[usize], grid: &PositionGrid) -> 
 }
 
 fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
-    let norm = q.iter().map(|c| f64::from(*c).powi(2)).sum::<f64>().sqrt();
+    let norm = q.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>().sqrt();
     let unit: [f64; 4] = if norm > 0.0 { q.map(|c| f64::from(c) / norm) } else { [1.0, 0.0, 0.0, 0.0] };
     let largest = (0..4).fold(0, |best, i| if unit[i].abs() > unit[best].abs() { i } else { best });
     let sign = if unit[largest] < 0.0 { -1.0 } else { 1.0 };

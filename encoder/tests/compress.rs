@@ -83,3 +83,32 @@ fn gaussians_sharing_a_cell_refine_the_grid() {
     let c = compress(&g, &QuantizerSettings::default(), &context, None).unwrap();
     assert_eq!(c.decoded.gaussians.len(), g.len());
 }
+
+#[test]
+fn quality_steps_are_exact_powers_of_sqrt2() {
+    let default = QuantizerSettings::default();
+    for q in 0..=10u8 {
+        let s = QuantizerSettings::for_quality(q);
+        let k = 5 - i32::from(q);
+        // sqrt(2)^k: a power of two, times SQRT_2 for odd k.
+        let expected = 2f32.powi(k.div_euclid(2)) * if k.rem_euclid(2) == 1 { std::f32::consts::SQRT_2 } else { 1.0 };
+        assert_eq!(s.log_scale_step, default.log_scale_step * expected, "quality {q}");
+        assert_eq!(s.band_steps[2], default.band_steps[2] * expected, "quality {q}");
+        let bits = [10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15][usize::from(q)];
+        assert_eq!(s.position_bits, bits, "quality {q}");
+    }
+}
+
+/// The same model gives the same bytes whatever the number of threads (DESIGN.md section 5).
+#[test]
+fn stream_bytes_do_not_depend_on_the_thread_count() {
+    let g = scene();
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let bytes = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| compress(&g, &QuantizerSettings::for_quality(7), &context, None).unwrap().bytes)
+    };
+    let one = bytes(1);
+    assert_eq!(bytes(2), one);
+    assert_eq!(bytes(5), one);
+}
