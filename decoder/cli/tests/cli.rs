@@ -139,3 +139,46 @@ fn wrapped_stream_renders_with_and_without_the_wrapper_and_its_residual() {
     let out = pwdec(&[plain.to_str().unwrap(), "--view", c, "-o", &path("x.png"), "--residual", &path("r.png")]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no perceptual wrapper"));
 }
+
+/// A dataset of two views (a test and a training view) of `width` x `height` pixels.
+fn dataset_of_size(dir: &Path, width: u32, height: u32) -> String {
+    image::RgbImage::new(width, height).save(dir.join("a.png")).unwrap();
+    let pose = "[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 4], [0, 0, 0, 1]]";
+    let frame = format!(r#"{{"file_path": "a.png", "transform_matrix": {pose}}}"#);
+    let json = format!(r#"{{"camera_angle_x": 0.8, "frames": [{frame}, {frame}]}}"#);
+    std::fs::write(dir.join("transforms.json"), json).unwrap();
+    dir.to_str().unwrap().to_string()
+}
+
+/// Views are sized from image headers, which may claim anything: a side beyond 65535 used to
+/// reach the noise pyramid's assertion on a wrapped stream; now it is an error naming the image.
+#[test]
+fn views_of_absurd_size_are_refused_before_rendering() {
+    let tmp = tempfile::tempdir().unwrap();
+    let stream = wrapped_vector("stream.pwb");
+    let out = tmp.path().join("out");
+    let wide = tmp.path().join("wide");
+    std::fs::create_dir(&wide).unwrap();
+    let dataset = dataset_of_size(&wide, 70_000, 1);
+    let run = pwdec(&[stream.to_str().unwrap(), "--views", &dataset, "--split", "all", "-o", out.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && err.contains("a.png") && err.contains("70000x1"), "{err}");
+    assert!(!out.join("a.png").exists());
+    // Within the side limit, the pixel limit still applies.
+    let tall = tmp.path().join("tall");
+    std::fs::create_dir(&tall).unwrap();
+    let dataset = dataset_of_size(&tall, 2, 60_000);
+    let run = pwdec(&[
+        stream.to_str().unwrap(),
+        "--views",
+        &dataset,
+        "--split",
+        "all",
+        "--max-pixels",
+        "100000",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && err.contains("--max-pixels"), "{err}");
+}
