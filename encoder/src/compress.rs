@@ -65,6 +65,8 @@ pub struct Compressed {
     pub decoded: Decoded,
     /// Gaussians dropped as invisible (opacity below 1/255 after quantization).
     pub invisible: usize,
+    /// Visible Gaussians dropped, least important first, to fit a target size.
+    pub pruned: usize,
 }
 
 /// Why Gaussians could not be compressed.
@@ -78,6 +80,8 @@ pub enum CompressError {
     SelfCheck(#[from] stream::DecodeError),
     #[error("{count} Gaussians exceed the stream limit of {limit}")]
     TooMany { count: usize, limit: u32 },
+    #[error("a stream of at most {target} bytes is impossible: without any Gaussian it takes {minimum}")]
+    TargetTooSmall { target: usize, minimum: usize },
 }
 
 /// Scene normalization and render settings stored in the header.
@@ -121,13 +125,76 @@ pub fn compress(
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
 ) -> Result<Compressed, CompressError> {
+    compress_to_size(g, settings, context, wrapper, usize::MAX)
+}
+
+/// [`compress`] into at most `target` bytes: every visible Gaussian if the stream fits, else
+/// the most important ones (see [`importance`]), as many as fit. The count is found by
+/// bisection; the stream grows with it by about a Gaussian's bytes at a time, so the result
+/// lands within a few Gaussians' bytes of the target, which makes equal-size comparisons one
+/// option away.
+pub fn compress_to_size(
+    g: &Gaussians,
+    settings: &QuantizerSettings,
+    context: &StreamContext,
+    wrapper: Option<&QuantizedSynthesis>,
+    target: usize,
+) -> Result<Compressed, CompressError> {
     check_finite(g)?;
     let visible = visible_after_quantization(g, settings.opacity_step);
     let invisible = g.len() - visible.len();
-    if visible.len() > stream::header::MAX_GAUSSIANS as usize {
-        return Err(CompressError::TooMany { count: visible.len(), limit: stream::header::MAX_GAUSSIANS });
+    let write = |keep: &[usize]| write_selected(g, keep, settings, context, wrapper);
+    let mut bytes = write(&visible)?;
+    let mut kept = visible.len();
+    if bytes.len() > target {
+        let mut ranked = visible.clone();
+        ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
+        let most_important = |k: usize| {
+            let mut keep = ranked[..k].to_vec();
+            keep.sort_unstable();
+            write(&keep)
+        };
+        bytes = most_important(0)?;
+        if bytes.len() > target {
+            return Err(CompressError::TargetTooSmall { target, minimum: bytes.len() });
+        }
+        // Invariant: `lo` Gaussians fit (their stream is `bytes`), `hi` do not.
+        let (mut lo, mut hi) = (0, visible.len());
+        while hi - lo > 1 {
+            let mid = lo + (hi - lo) / 2;
+            let candidate = most_important(mid)?;
+            if candidate.len() <= target {
+                (lo, bytes) = (mid, candidate);
+            } else {
+                hi = mid;
+            }
+        }
+        kept = lo;
     }
-    let mut content = quantize(g, &visible, settings);
+    let decoded = stream::decode(&bytes)?;
+    Ok(Compressed { bytes, decoded, invisible, pruned: visible.len() - kept })
+}
+
+/// How much a Gaussian can show, for choosing what to drop: the log of its opacity times its
+/// projected area, log sigmoid(l) + (2/3) (s_x + s_y + s_z), with log sigmoid(l) taken as
+/// min(l, 0) (within ln 2) so that only `+ - *` decide what a stream holds, on every machine.
+fn importance(g: &Gaussians, i: usize) -> f32 {
+    let [sx, sy, sz] = g.log_scales[i];
+    g.opacity_logits[i].min(0.0) + (2.0 / 3.0) * (sx + sy + sz)
+}
+
+/// The stream of the Gaussians `keep` (indices into `g`, increasing).
+fn write_selected(
+    g: &Gaussians,
+    keep: &[usize],
+    settings: &QuantizerSettings,
+    context: &StreamContext,
+    wrapper: Option<&QuantizedSynthesis>,
+) -> Result<Vec<u8>, CompressError> {
+    if keep.len() > stream::header::MAX_GAUSSIANS as usize {
+        return Err(CompressError::TooMany { count: keep.len(), limit: stream::header::MAX_GAUSSIANS });
+    }
+    let mut content = quantize(g, keep, settings);
     let header = Header {
         base: BaseKind::Plain3dgs,
         gaussian_count: content.len() as u32,
@@ -138,20 +205,18 @@ pub fn compress(
     };
     // Several Gaussians can share a grid cell; a cell holds at most 255, so refine the grid
     // until none overflows.
-    let bytes = loop {
+    loop {
         match stream::encode(&header, &content, wrapper) {
-            Ok(bytes) => break bytes,
+            Ok(bytes) => return Ok(bytes),
             Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => {
                 let finer =
                     PositionGrid { cell: content.grid.cell / 2.0, depth: content.grid.depth + 1, ..content.grid };
-                content.positions = quantize_positions(g, &visible, &finer);
+                content.positions = quantize_positions(g, keep, &finer);
                 content.grid = finer;
             }
             Err(e) => return Err(e.into()),
         }
-    };
-    let decoded = stream::decode(&bytes)?;
-    Ok(Compressed { bytes, decoded, invisible })
+    }
 }
 
 fn check_finite(g: &Gaussians) -> Result<(), CompressError> {

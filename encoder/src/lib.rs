@@ -1,5 +1,5 @@
 //! The pwgs encoder library: initialization, the rasterizer's backward pass and its Burn
-//! operation, training, evaluation and metrics. Scene loading lives in the `pwgs-dataset`
+//! operation, training, evaluation, metrics, and whole encoder runs (`session`). Scene loading lives in the `pwgs-dataset`
 //! crate beside it, rendering and everything normative in `pwgs-decoder`.
 
 pub mod backward;
@@ -9,6 +9,7 @@ pub mod exit;
 pub mod fidelity;
 pub mod init;
 pub mod metrics;
+pub mod session;
 pub mod splat_op;
 pub mod synthesis;
 pub mod train;

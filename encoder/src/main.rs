@@ -5,32 +5,19 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use burn::tensor::Device;
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use glam::Vec3;
-use indicatif::{ProgressBar, ProgressStyle};
-use pwgs_bitstream::Container;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::random_scene::SplitMix64;
-use pwgs_decoder::raster::{RenderOptions, render};
-use pwgs_decoder::stream::attribute_hash;
-use pwgs_decoder::stream::wrap::{MAX_WIDTH, QuantizedSynthesis};
-use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
-use pwgs_decoder::wrapper::{SceneFrame, WrapperView, conditioning};
-use pwgs_encoder::compress::{Compressed, DEFAULT_QUALITY, MAX_QUALITY, QuantizerSettings, StreamContext, compress};
-use pwgs_encoder::evaluate::{MeanScore, ViewScore, evaluate};
-use pwgs_encoder::fidelity::{orbit_cameras, renders};
-use pwgs_encoder::init::initial_gaussians;
-use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_decoder::stream::wrap::MAX_WIDTH;
+use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
 use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
-use pwgs_encoder::synthesis::{QuantizationSample, choose_quantization};
-use pwgs_encoder::train::{TrainConfig, TrainSummary, Trainer, WdFeatures, WrapperTraining, train};
-use serde::Serialize;
+use pwgs_encoder::session::{ImportJob, Orbit, SceneJob, StreamOptions, encode_scene, import_ply};
+use pwgs_encoder::train::{TrainConfig, WdFeatures, WrapperTraining};
 
 #[derive(Parser)]
 #[command(
@@ -106,6 +93,11 @@ struct EncodeArgs {
     /// every quantization step by 1/sqrt(2).
     #[arg(long, default_value_t = DEFAULT_QUALITY, value_parser = clap::value_parser!(u8).range(0..=MAX_QUALITY as i64))]
     quality: u8,
+    /// Largest stream size in bytes: when the stream would be larger, the least important
+    /// Gaussians (lowest opacity times area) are dropped until it fits. Two runs with the
+    /// same target compare at equal size (within a few Gaussians' bytes).
+    #[arg(long, requires = "output", value_parser = clap::value_parser!(u64).range(1..))]
+    target_bytes: Option<u64>,
     /// With --from-ply: render this many views on an orbit around the model, from the input and
     /// from the decoded stream, and report the PSNR between them.
     #[arg(long, requires = "from_ply")]
@@ -275,9 +267,12 @@ struct LoadArgs {
 }
 
 impl LoadArgs {
+    fn options(&self) -> LoadOptions {
+        LoadOptions { downscale: self.downscale, background: self.background, ..Default::default() }
+    }
+
     fn load(&self, scene: &Path) -> Result<Dataset> {
-        let options = LoadOptions { downscale: self.downscale, background: self.background, ..Default::default() };
-        load_scene(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))
+        load_scene(scene, &self.options()).with_context(|| format!("cannot load the scene {}", scene.display()))
     }
 }
 
@@ -306,346 +301,62 @@ fn parse_color(s: &str) -> Result<[f32; 3], String> {
     }
 }
 
-/// What `-o` wrote.
-#[derive(Serialize)]
-struct StreamSummary {
-    path: String,
-    bytes: usize,
-    quality: u8,
-    gaussians: u32,
-    dropped_invisible: usize,
-    sh_degree_in: u32,
-    sh_degree: u32,
-    /// Bytes of each section, container overhead (tag, length, CRC) included.
-    sections: Vec<(String, usize)>,
-    wrapper: Option<WrapperSummary>,
-    attribute_sha256: String,
-    seconds: f64,
-}
+impl EncodeArgs {
+    fn stream(&self) -> Option<StreamOptions> {
+        self.output.clone().map(|path| StreamOptions { path, quality: self.quality, target_bytes: self.target_bytes })
+    }
 
-/// The wrapper a stream carries.
-#[derive(Serialize)]
-struct WrapperSummary {
-    width: usize,
-    noise: bool,
-    plucker: bool,
-    seed: u64,
-    parameters: usize,
-    weight_step_log2: i8,
-    bias_step_log2: i8,
-}
-
-#[derive(Serialize)]
-struct Report<'a> {
-    scene: String,
-    format: &'a str,
-    base: &'static str,
-    resolution: [u32; 2],
-    train_views: usize,
-    test_views: usize,
-    load_seconds: f64,
-    training: TrainSummary,
-    /// Size of the trained model as an uncompressed INRIA PLY.
-    ply_bytes: usize,
-    stream: Option<StreamSummary>,
-    /// Scores of the decoded stream when one was written, else of the trained model.
-    mean: Option<MeanScore>,
-    views: Vec<ViewScore>,
-}
-
-#[derive(Serialize)]
-struct ImportReport {
-    input: String,
-    ply_bytes: u64,
-    stream: StreamSummary,
-    compression_ratio: f64,
-    orbit_views: usize,
-    orbit_size: u32,
-    orbit_psnr: Vec<f64>,
-    orbit_psnr_mean: Option<f64>,
-    orbit_psnr_min: Option<f64>,
-}
-
-/// Compresses `g` into a stream at `path` and decodes it back through the decoder library.
-fn write_stream(
-    g: &Gaussians,
-    context: &StreamContext,
-    quality: u8,
-    wrapper: Option<&QuantizedSynthesis>,
-    path: &Path,
-) -> Result<(Compressed, StreamSummary)> {
-    let start = Instant::now();
-    let compressed = compress(g, &QuantizerSettings::for_quality(quality), context, wrapper)?;
-    pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    let container = Container::parse(&compressed.bytes).expect("the encoder's own stream parses");
-    let sections = container
-        .sections
-        .iter()
-        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + 12))
-        .collect();
-    let header = &compressed.decoded.header;
-    let summary = StreamSummary {
-        path: path.display().to_string(),
-        bytes: compressed.bytes.len(),
-        quality,
-        gaussians: header.gaussian_count,
-        dropped_invisible: compressed.invisible,
-        sh_degree_in: g.sh_degree,
-        sh_degree: header.sh_degree,
-        sections,
-        wrapper: wrapper.map(|w| WrapperSummary {
-            width: w.config.width,
-            noise: w.config.noise,
-            plucker: w.config.plucker,
-            seed: w.config.seed,
-            parameters: w.values.len(),
-            weight_step_log2: w.weight_exponent,
-            bias_step_log2: w.bias_exponent,
-        }),
-        attribute_sha256: attribute_hash(&compressed.decoded.gaussians),
-        seconds: start.elapsed().as_secs_f64(),
-    };
-    println!(
-        "wrote {} ({} bytes, {} Gaussians, SH degree {}, {} invisible dropped) in {:.2} s",
-        path.display(),
-        summary.bytes,
-        summary.gaussians,
-        summary.sh_degree,
-        summary.dropped_invisible,
-        summary.seconds
-    );
-    Ok((compressed, summary))
-}
-
-/// Quantizes f with steps chosen on renders of the first training views: the coarsest whose
-/// residual stays within a quarter of a gray level of the float network's.
-fn quantize_wrapper(
-    weights: &SynthesisWeights,
-    g: &Gaussians,
-    data: &Dataset,
-    frame: SceneFrame,
-    options: &RenderOptions,
-) -> QuantizedSynthesis {
-    let samples: Vec<QuantizationSample> = data
-        .train
-        .iter()
-        .take(2)
-        .map(|view| QuantizationSample {
-            base: render(g, &view.camera, options).data,
-            conditioning: conditioning(&weights.config, &view.camera, frame),
-            width: view.camera.width as usize,
-            height: view.camera.height as usize,
+    /// `--from-ply`: the import job.
+    fn import_job(&self, ply: &Path) -> Result<ImportJob> {
+        Ok(ImportJob {
+            ply: ply.to_path_buf(),
+            stream: self.stream().context("--from-ply needs -o/--output for the stream")?,
+            background: self.load.background,
+            orbit: self.orbit.map(|views| Orbit {
+                views,
+                up: self.up,
+                size: self.orbit_size,
+                renders: self.orbit_renders.clone(),
+            }),
+            report: self.report.clone(),
         })
-        .collect();
-    choose_quantization(weights, &samples, 0.25 / 255.0)
-}
-
-fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
-    pwgs_decoder::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(report)?)
-        .with_context(|| format!("cannot write {}", path.display()))
-}
-
-fn read_ply(path: &Path) -> Result<Gaussians> {
-    let loaded = pwgs_decoder::ply::read_gaussians(path)?;
-    if loaded.dropped_non_finite + loaded.clamped_opacities > 0 {
-        eprintln!(
-            "{}: dropped {} Gaussians with non-finite values, clamped {} infinite opacities",
-            path.display(),
-            loaded.dropped_non_finite,
-            loaded.clamped_opacities
-        );
     }
-    Ok(loaded.gaussians)
-}
 
-/// Fails now, rather than after training, if an output cannot be written; creates the
-/// folders of renders.
-fn check_outputs(args: &EncodeArgs) -> Result<()> {
-    for path in [&args.output, &args.report, &args.export_ply].into_iter().flatten() {
-        pwgs_decoder::atomic_file::check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
-    }
-    for dir in [&args.eval, &args.orbit_renders].into_iter().flatten() {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    Ok(())
-}
-
-/// `pwenc --from-ply`: compress a model trained elsewhere, optionally checking the decoded
-/// stream's renders against the model's own on an orbit.
-fn compress_ply(ply: &Path, args: &EncodeArgs) -> Result<()> {
-    let output = args.output.as_deref().context("--from-ply needs -o/--output for the stream")?;
-    let gaussians = read_ply(ply)?;
-    let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
-    let context = StreamContext::from_gaussians(&gaussians, args.load.background);
-    let (compressed, stream) = write_stream(&gaussians, &context, args.quality, None, output)?;
-    let ratio = ply_bytes as f64 / stream.bytes as f64;
-    println!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), output.display(), stream.bytes);
-    let mut orbit_psnr = Vec::new();
-    if let Some(count) = args.orbit {
-        let cameras = orbit_cameras(&context, Vec3::from(args.up), count, args.orbit_size)?;
-        let options = RenderOptions { background: args.load.background, ..Default::default() };
-        let reference = renders(&gaussians, &cameras, &options);
-        let decoded = renders(&compressed.decoded.gaussians, &cameras, &options);
-        orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
-        if let Some(dir) = &args.orbit_renders {
-            for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {
-                input.save_png(&dir.join(format!("orbit_{i:03}_input.png")))?;
-                decoded.save_png(&dir.join(format!("orbit_{i:03}_decoded.png")))?;
-            }
+    /// Training on a scene: the training settings from the options.
+    fn scene_job(&self, scene: &Path) -> Result<SceneJob> {
+        let mut config = TrainConfig::for_iterations(self.iters);
+        config.wrapper = self.wrapper.training(self.iters, self.seed)?;
+        if let Some(until) = self.densify_until {
+            config.densify_until = until;
         }
-        for (i, p) in orbit_psnr.iter().enumerate() {
-            println!("orbit view {i:>3}: PSNR {p:.2} dB against the input model");
+        if let Some(rates) = self.position_lr {
+            config.lr_position = rates;
         }
+        if let Some(w) = &config.wrapper {
+            config.densify_until = config.densify_until.min(w.start);
+        }
+        config.background = self.load.background;
+        config.seed = self.seed;
+        config.densify.max_gaussians = self.max_gaussians;
+        Ok(SceneJob {
+            scene: scene.to_path_buf(),
+            load: self.load.options(),
+            init_ply: self.init_ply.clone(),
+            config,
+            stream: self.stream(),
+            export_ply: self.export_ply.clone(),
+            eval: self.eval.clone(),
+            report: self.report.clone(),
+        })
     }
-    let mean = (!orbit_psnr.is_empty()).then(|| orbit_psnr.iter().sum::<f64>() / orbit_psnr.len() as f64);
-    let min = orbit_psnr.iter().copied().reduce(f64::min);
-    if let (Some(mean), Some(min)) = (mean, min) {
-        println!("orbit: mean PSNR {mean:.2} dB, lowest {min:.2} dB over {} views", orbit_psnr.len());
-    }
-    if let Some(path) = &args.report {
-        let report = ImportReport {
-            input: ply.display().to_string(),
-            ply_bytes,
-            stream,
-            compression_ratio: ratio,
-            orbit_views: orbit_psnr.len(),
-            orbit_size: args.orbit_size,
-            orbit_psnr,
-            orbit_psnr_mean: mean,
-            orbit_psnr_min: min,
-        };
-        write_report(path, &report)?;
-    }
-    Ok(())
 }
 
 fn encode(args: EncodeArgs) -> Result<()> {
-    check_outputs(&args)?;
-    if let Some(ply) = &args.from_ply {
-        return compress_ply(ply, &args);
+    match (&args.from_ply, &args.scene) {
+        (Some(ply), _) => import_ply(&args.import_job(ply)?).map(drop),
+        (None, Some(scene)) => encode_scene(args.scene_job(scene)?).map(drop),
+        (None, None) => unreachable!("clap requires a scene or --from-ply"),
     }
-    let scene = args.scene.as_deref().expect("clap requires the scene");
-    let start = Instant::now();
-    let data = args.load.load(scene)?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    let first = &data.train[0].image;
-    println!(
-        "{}: {} ({} train / {} test views, {}x{})",
-        scene.display(),
-        data.format,
-        data.train.len(),
-        data.test.len(),
-        first.width,
-        first.height
-    );
-    let initial = match &args.init_ply {
-        Some(path) => read_ply(path)?,
-        None => initial_gaussians(&data, args.seed)?,
-    };
-    let mut config = TrainConfig::for_iterations(args.iters);
-    config.wrapper = args.wrapper.training(args.iters, args.seed)?;
-    if let Some(until) = args.densify_until {
-        config.densify_until = until;
-    }
-    if let Some(rates) = args.position_lr {
-        config.lr_position = rates;
-    }
-    if let Some(w) = &config.wrapper {
-        config.densify_until = config.densify_until.min(w.start);
-    }
-    config.initial_sh_degree = initial.sh_degree;
-    config.background = args.load.background;
-    config.seed = args.seed;
-    config.densify.max_gaussians = args.max_gaussians;
-    let mut trainer = Trainer::new(config, &data, &initial, Device::flex())?;
-    let bar = ProgressBar::new(args.iters as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}")
-            .expect("valid template"),
-    );
-    let mut timer = (Instant::now(), 0u32);
-    let result = train(&mut trainer, |it, step| {
-        bar.set_position(it as u64);
-        if it % 10 == 0 || it == args.iters {
-            let rate = (it - timer.1) as f64 / timer.0.elapsed().as_secs_f64().max(1e-9);
-            timer = (Instant::now(), it);
-            let message =
-                format!("loss {:.4}  PSNR {:.2}  Gaussians {}  {rate:.2} it/s", step.loss, step.psnr, step.gaussians);
-            // Without a terminal (logs, CI) the bar is hidden: print a line now and then.
-            if bar.is_hidden() && (it % 100 == 0 || it == args.iters) {
-                eprintln!("iteration {it}/{}  {message}", args.iters);
-            }
-            bar.set_message(message);
-        }
-    });
-    bar.finish();
-    // Whatever happened in training, the model holds its last good state: save it.
-    let gaussians = trainer.gaussians();
-    if let Some(path) = &args.export_ply {
-        pwgs_decoder::ply::write_gaussians(path, &gaussians)?;
-        println!("wrote {} Gaussians to {}", gaussians.len(), path.display());
-    }
-    let training = result?;
-    println!(
-        "trained {} iterations in {:.1} s: {} Gaussians",
-        training.iterations, training.seconds, training.gaussians
-    );
-    let n = data.normalization;
-    let frame = n.frame();
-    let options = RenderOptions { background: args.load.background, ..Default::default() };
-    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &gaussians, &data, frame, &options));
-    if let Some(w) = &wrapper {
-        println!(
-            "wrapper: {} parameters, steps 2^{} (weights) and 2^{} (biases)",
-            w.values.len(),
-            w.weight_exponent,
-            w.bias_exponent
-        );
-    }
-    let stream = match &args.output {
-        Some(path) => {
-            let context =
-                StreamContext { center: n.center.to_array(), scale: n.scale, background: args.load.background };
-            Some(write_stream(&gaussians, &context, args.quality, wrapper.as_ref(), path)?)
-        }
-        None => None,
-    };
-    // What is evaluated is what a decoder shows: the decoded stream when there is one, and the
-    // wrapper with exactly its dequantized weights.
-    let shown = stream.as_ref().map_or(&gaussians, |(c, _)| &c.decoded.gaussians);
-    let dequantized = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
-    let wrapper_view = dequantized.as_ref().map(|weights| WrapperView { weights, frame });
-    let (views, mean) = match &args.eval {
-        Some(dir) => {
-            let views = evaluate(shown, wrapper_view, &data, &options, Some(dir))?;
-            for v in &views {
-                println!("{:<24} PSNR {:6.2} dB  SSIM {:.4}  render {:.3} s", v.name, v.psnr, v.ssim, v.render_seconds);
-            }
-            let mean = MeanScore::of(&views);
-            println!("mean over {} test views: PSNR {:.2} dB, SSIM {:.4}", views.len(), mean.psnr, mean.ssim);
-            (views, Some(mean))
-        }
-        None => (Vec::new(), None),
-    };
-    if let Some(path) = &args.report {
-        let report = Report {
-            scene: scene.display().to_string(),
-            format: data.format,
-            base: "3dgs",
-            resolution: [first.width, first.height],
-            train_views: data.train.len(),
-            test_views: data.test.len(),
-            load_seconds,
-            training,
-            ply_bytes: pwgs_decoder::ply::inria_ply_size(&gaussians),
-            stream: stream.map(|(_, summary)| summary),
-            mean,
-            views,
-        };
-        write_report(path, &report)?;
-    }
-    Ok(())
 }
 
 fn main() -> ExitCode {

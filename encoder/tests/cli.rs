@@ -114,6 +114,16 @@ fn compresses_an_imported_ply() {
     let decoded = pwgs_decoder::stream::decode(&bytes).unwrap();
     assert_eq!(report["stream"]["attribute_sha256"], pwgs_decoder::stream::attribute_hash(&decoded.gaussians));
     assert_eq!(decoded.gaussians.len(), 800);
+    // A target size half the stream's drops Gaussians until it fits, and says so.
+    let target = (bytes.len() / 2).to_string();
+    let args = ["--from-ply", &path("in.ply"), "-o", &path("half.pwb"), "--quality", "7", "--target-bytes", &target];
+    let out = pwenc(&[&args[..], &["--report", &path("half.json")]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(path("half.json")).unwrap()).unwrap();
+    let half = std::fs::read(path("half.pwb")).unwrap().len();
+    assert!(half <= bytes.len() / 2 && half + 200 > bytes.len() / 2, "{half} bytes for a target of {target}");
+    let pruned = report["stream"]["pruned_to_fit"].as_u64().unwrap();
+    assert!(pruned > 300 && report["stream"]["gaussians"].as_u64().unwrap() + pruned == 800, "{report}");
     // Without -o there is nowhere to write.
     let out = pwenc(&["--from-ply", &path("in.ply")]);
     assert!(!out.status.success());

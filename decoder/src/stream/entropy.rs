@@ -491,7 +491,11 @@ mod tests {
         let table = FrequencyTable::fit(&(-40..40).collect::<Vec<_>>());
         assert!(chunk(&table, &[]).is_empty(), "no symbols, no words");
         assert!(SymbolDecoder::new(&[]).unwrap().finish().is_ok());
-        assert_eq!(SymbolDecoder::new(&[0; 8]).unwrap().finish(), Err(EntropyError::Unread(8)), "symbols expected none");
+        assert_eq!(
+            SymbolDecoder::new(&[0; 8]).unwrap().finish(),
+            Err(EntropyError::Unread(8)),
+            "symbols expected none"
+        );
         for len in [1usize, 2, 3, 5, 17, 100, 1000, 5000] {
             for spread in [1.0, 30.0, 1e5] {
                 let values: Vec<i32> = (0..len).map(|_| rng.uniform(-spread, spread) as i32).collect();

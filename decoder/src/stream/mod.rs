@@ -116,7 +116,9 @@ fn check_count_against_length(header: &Header, len: usize) -> Result<(), DecodeE
     if count > len as u64 {
         return Err(DecodeError::invalid(
             Tag::HEAD,
-            format!("gaussian count {count} exceeds the stream's length of {len} bytes (at most one Gaussian per byte)"),
+            format!(
+                "gaussian count {count} exceeds the stream's length of {len} bytes (at most one Gaussian per byte)"
+            ),
         ));
     }
     Ok(())

@@ -1,0 +1,97 @@
+//! `pwenc --from-ply`: compress a 3DGS model trained elsewhere, optionally checking the decoded
+//! stream's renders against the model's own on an orbit.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use glam::Vec3;
+use pwgs_decoder::raster::RenderOptions;
+use serde::Serialize;
+
+use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
+use crate::compress::StreamContext;
+use crate::fidelity::{orbit_cameras, renders};
+use crate::metrics::psnr::psnr;
+
+/// Views on a circle around the model, rendered from the input and from the decoded stream.
+#[derive(Debug, Clone)]
+pub struct Orbit {
+    pub views: usize,
+    pub up: [f32; 3],
+    /// Width and height of the views.
+    pub size: u32,
+    /// Save the renders (input and decoded) as PNGs here.
+    pub renders: Option<PathBuf>,
+}
+
+/// Everything an import does.
+#[derive(Debug, Clone)]
+pub struct ImportJob {
+    pub ply: PathBuf,
+    pub stream: StreamOptions,
+    pub background: [f32; 3],
+    pub orbit: Option<Orbit>,
+    pub report: Option<PathBuf>,
+}
+
+#[derive(Serialize)]
+pub struct ImportReport {
+    pub input: String,
+    pub ply_bytes: u64,
+    pub stream: StreamSummary,
+    pub compression_ratio: f64,
+    pub orbit_views: usize,
+    pub orbit_size: Option<u32>,
+    pub orbit_psnr: Vec<f64>,
+    pub orbit_psnr_mean: Option<f64>,
+    pub orbit_psnr_min: Option<f64>,
+}
+
+pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
+    let folders = job.orbit.iter().filter_map(|o| o.renders.as_ref());
+    check_outputs([&job.stream.path].into_iter().chain(&job.report), folders)?;
+    let ply = &job.ply;
+    let gaussians = read_ply(ply)?;
+    let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
+    let context = StreamContext::from_gaussians(&gaussians, job.background);
+    let (compressed, stream) = write_stream(&gaussians, &context, &job.stream, None)?;
+    let ratio = ply_bytes as f64 / stream.bytes as f64;
+    println!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), stream.path, stream.bytes);
+    let mut orbit_psnr = Vec::new();
+    if let Some(orbit) = &job.orbit {
+        let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)?;
+        let options = RenderOptions { background: job.background, ..Default::default() };
+        let reference = renders(&gaussians, &cameras, &options);
+        let decoded = renders(&compressed.decoded.gaussians, &cameras, &options);
+        orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
+        if let Some(dir) = &orbit.renders {
+            for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {
+                input.save_png(&dir.join(format!("orbit_{i:03}_input.png")))?;
+                decoded.save_png(&dir.join(format!("orbit_{i:03}_decoded.png")))?;
+            }
+        }
+        for (i, p) in orbit_psnr.iter().enumerate() {
+            println!("orbit view {i:>3}: PSNR {p:.2} dB against the input model");
+        }
+    }
+    let mean = (!orbit_psnr.is_empty()).then(|| orbit_psnr.iter().sum::<f64>() / orbit_psnr.len() as f64);
+    let min = orbit_psnr.iter().copied().reduce(f64::min);
+    if let (Some(mean), Some(min)) = (mean, min) {
+        println!("orbit: mean PSNR {mean:.2} dB, lowest {min:.2} dB over {} views", orbit_psnr.len());
+    }
+    let report = ImportReport {
+        input: ply.display().to_string(),
+        ply_bytes,
+        stream,
+        compression_ratio: ratio,
+        orbit_views: orbit_psnr.len(),
+        orbit_size: job.orbit.as_ref().map(|o| o.size),
+        orbit_psnr,
+        orbit_psnr_mean: mean,
+        orbit_psnr_min: min,
+    };
+    if let Some(path) = &job.report {
+        write_report(path, &report)?;
+    }
+    Ok(report)
+}

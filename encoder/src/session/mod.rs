@@ -1,0 +1,163 @@
+//! Whole encoder runs as a library (DESIGN.md section 3): what `pwenc` does once its
+//! arguments are parsed, so that the player and scripts can run the same pipeline. Each job
+//! checks its outputs before any work, writes every file atomically, and reports what it
+//! wrote as JSON-ready summaries.
+
+mod import;
+mod scene;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use pwgs_bitstream::Container;
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::stream::attribute_hash;
+use pwgs_decoder::stream::wrap::QuantizedSynthesis;
+use serde::Serialize;
+
+use crate::compress::{Compressed, QuantizerSettings, StreamContext, compress_to_size};
+
+pub use import::{ImportJob, ImportReport, Orbit, import_ply};
+pub use scene::{Report, SceneJob, encode_scene};
+
+/// Where and how to write a stream.
+#[derive(Debug, Clone)]
+pub struct StreamOptions {
+    pub path: PathBuf,
+    /// 0 (smallest) to [`MAX_QUALITY`](crate::compress::MAX_QUALITY).
+    pub quality: u8,
+    /// Largest stream size in bytes; the least important Gaussians are dropped to fit.
+    pub target_bytes: Option<u64>,
+}
+
+/// What a written stream holds.
+#[derive(Serialize)]
+pub struct StreamSummary {
+    pub path: String,
+    pub bytes: usize,
+    pub quality: u8,
+    pub gaussians: u32,
+    pub dropped_invisible: usize,
+    /// Visible Gaussians dropped to meet the target size.
+    pub pruned_to_fit: usize,
+    pub target_bytes: Option<u64>,
+    pub sh_degree_in: u32,
+    pub sh_degree: u32,
+    /// Bytes of each section, container overhead (tag, length, CRC) included.
+    pub sections: Vec<(String, usize)>,
+    pub wrapper: Option<WrapperSummary>,
+    pub attribute_sha256: String,
+    pub seconds: f64,
+}
+
+/// The wrapper a stream carries.
+#[derive(Serialize)]
+pub struct WrapperSummary {
+    pub width: usize,
+    pub noise: bool,
+    pub plucker: bool,
+    pub seed: u64,
+    pub parameters: usize,
+    pub weight_step_log2: i8,
+    pub bias_step_log2: i8,
+}
+
+impl WrapperSummary {
+    fn of(w: &QuantizedSynthesis) -> Self {
+        Self {
+            width: w.config.width,
+            noise: w.config.noise,
+            plucker: w.config.plucker,
+            seed: w.config.seed,
+            parameters: w.values.len(),
+            weight_step_log2: w.weight_exponent,
+            bias_step_log2: w.bias_exponent,
+        }
+    }
+}
+
+/// Compresses `g` into the stream `options` names and decodes it back through the decoder
+/// library.
+fn write_stream(
+    g: &Gaussians,
+    context: &StreamContext,
+    options: &StreamOptions,
+    wrapper: Option<&QuantizedSynthesis>,
+) -> Result<(Compressed, StreamSummary)> {
+    let start = Instant::now();
+    let settings = QuantizerSettings::for_quality(options.quality);
+    let limit = options.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
+    let compressed = compress_to_size(g, &settings, context, wrapper, limit)?;
+    let path = &options.path;
+    pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let container = Container::parse(&compressed.bytes).expect("the encoder's own stream parses");
+    let sections = container
+        .sections
+        .iter()
+        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + 12))
+        .collect();
+    let header = &compressed.decoded.header;
+    let summary = StreamSummary {
+        path: path.display().to_string(),
+        bytes: compressed.bytes.len(),
+        quality: options.quality,
+        gaussians: header.gaussian_count,
+        dropped_invisible: compressed.invisible,
+        pruned_to_fit: compressed.pruned,
+        target_bytes: options.target_bytes,
+        sh_degree_in: g.sh_degree,
+        sh_degree: header.sh_degree,
+        sections,
+        wrapper: wrapper.map(WrapperSummary::of),
+        attribute_sha256: attribute_hash(&compressed.decoded.gaussians),
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    println!(
+        "wrote {} ({} bytes, {} Gaussians, SH degree {}, {} invisible dropped) in {:.2} s",
+        path.display(),
+        summary.bytes,
+        summary.gaussians,
+        summary.sh_degree,
+        summary.dropped_invisible,
+        summary.seconds
+    );
+    if let Some(target) = options.target_bytes {
+        println!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);
+    }
+    Ok((compressed, summary))
+}
+
+fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
+    pwgs_decoder::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(report)?)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads an INRIA PLY, saying what had to be repaired.
+fn read_ply(path: &Path) -> Result<Gaussians> {
+    let loaded = pwgs_decoder::ply::read_gaussians(path)?;
+    if loaded.dropped_non_finite + loaded.clamped_opacities > 0 {
+        eprintln!(
+            "{}: dropped {} Gaussians with non-finite values, clamped {} infinite opacities",
+            path.display(),
+            loaded.dropped_non_finite,
+            loaded.clamped_opacities
+        );
+    }
+    Ok(loaded.gaussians)
+}
+
+/// Fails now, rather than after the work, if a file cannot be written; creates the folders.
+fn check_outputs<'a>(
+    files: impl IntoIterator<Item = &'a PathBuf>,
+    folders: impl IntoIterator<Item = &'a PathBuf>,
+) -> Result<()> {
+    for path in files {
+        pwgs_decoder::atomic_file::check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    for dir in folders {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,200 @@
+//! `pwenc SCENE`: train on a scene's views, then write the stream, evaluate what a decoder
+//! shows, and report.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use burn::tensor::Device;
+use indicatif::{ProgressBar, ProgressStyle};
+use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::stream::wrap::QuantizedSynthesis;
+use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
+use pwgs_decoder::wrapper::{SceneFrame, WrapperView, conditioning};
+use serde::Serialize;
+
+use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
+use crate::compress::StreamContext;
+use crate::evaluate::{MeanScore, ViewScore, evaluate};
+use crate::init::initial_gaussians;
+use crate::synthesis::{QuantizationSample, choose_quantization};
+use crate::train::{TrainConfig, TrainSummary, Trainer, train};
+
+/// Everything a training run does. `config.background` is also the scene's background.
+#[derive(Debug, Clone)]
+pub struct SceneJob {
+    pub scene: PathBuf,
+    pub load: LoadOptions,
+    /// Start from this INRIA PLY instead of the scene's points.
+    pub init_ply: Option<PathBuf>,
+    pub config: TrainConfig,
+    pub stream: Option<StreamOptions>,
+    /// Write the trained Gaussians as an INRIA PLY.
+    pub export_ply: Option<PathBuf>,
+    /// Render the test views here and score them.
+    pub eval: Option<PathBuf>,
+    pub report: Option<PathBuf>,
+}
+
+#[derive(Serialize)]
+pub struct Report {
+    pub scene: String,
+    pub format: &'static str,
+    pub base: &'static str,
+    pub resolution: [u32; 2],
+    pub train_views: usize,
+    pub test_views: usize,
+    pub load_seconds: f64,
+    pub training: TrainSummary,
+    /// Size of the trained model as an uncompressed INRIA PLY.
+    pub ply_bytes: usize,
+    pub stream: Option<StreamSummary>,
+    /// Scores of the decoded stream when one was written, else of the trained model.
+    pub mean: Option<MeanScore>,
+    pub views: Vec<ViewScore>,
+}
+
+pub fn encode_scene(job: SceneJob) -> Result<Report> {
+    let files = job.stream.iter().map(|s| &s.path).chain(&job.report).chain(&job.export_ply);
+    check_outputs(files, &job.eval)?;
+    let scene = &job.scene;
+    let start = Instant::now();
+    let data = load_scene(scene, &job.load).with_context(|| format!("cannot load the scene {}", scene.display()))?;
+    let load_seconds = start.elapsed().as_secs_f64();
+    let first = &data.train[0].image;
+    println!(
+        "{}: {} ({} train / {} test views, {}x{})",
+        scene.display(),
+        data.format,
+        data.train.len(),
+        data.test.len(),
+        first.width,
+        first.height
+    );
+    let initial = match &job.init_ply {
+        Some(path) => read_ply(path)?,
+        None => initial_gaussians(&data, job.config.seed)?,
+    };
+    let mut config = job.config.clone();
+    config.initial_sh_degree = initial.sh_degree;
+    let background = config.background;
+    let iterations = config.iterations;
+    let mut trainer = Trainer::new(config, &data, &initial, Device::flex())?;
+    let result = train_with_progress(&mut trainer, iterations);
+    // Whatever happened in training, the model holds its last good state: save it.
+    let gaussians = trainer.gaussians();
+    if let Some(path) = &job.export_ply {
+        pwgs_decoder::ply::write_gaussians(path, &gaussians)?;
+        println!("wrote {} Gaussians to {}", gaussians.len(), path.display());
+    }
+    let training = result?;
+    println!(
+        "trained {} iterations in {:.1} s: {} Gaussians",
+        training.iterations, training.seconds, training.gaussians
+    );
+    let n = data.normalization;
+    let frame = n.frame();
+    let options = RenderOptions { background, ..Default::default() };
+    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &gaussians, &data, frame, &options));
+    if let Some(w) = &wrapper {
+        println!(
+            "wrapper: {} parameters, steps 2^{} (weights) and 2^{} (biases)",
+            w.values.len(),
+            w.weight_exponent,
+            w.bias_exponent
+        );
+    }
+    let stream = match &job.stream {
+        Some(stream) => {
+            let context = StreamContext { center: n.center.to_array(), scale: n.scale, background };
+            Some(write_stream(&gaussians, &context, stream, wrapper.as_ref())?)
+        }
+        None => None,
+    };
+    // What is evaluated is what a decoder shows: the decoded stream when there is one, and the
+    // wrapper with exactly its dequantized weights.
+    let shown = stream.as_ref().map_or(&gaussians, |(c, _)| &c.decoded.gaussians);
+    let dequantized = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
+    let wrapper_view = dequantized.as_ref().map(|weights| WrapperView { weights, frame });
+    let (views, mean) = match &job.eval {
+        Some(dir) => {
+            let views = evaluate(shown, wrapper_view, &data, &options, Some(dir))?;
+            for v in &views {
+                println!("{:<24} PSNR {:6.2} dB  SSIM {:.4}  render {:.3} s", v.name, v.psnr, v.ssim, v.render_seconds);
+            }
+            let mean = MeanScore::of(&views);
+            println!("mean over {} test views: PSNR {:.2} dB, SSIM {:.4}", views.len(), mean.psnr, mean.ssim);
+            (views, Some(mean))
+        }
+        None => (Vec::new(), None),
+    };
+    let report = Report {
+        scene: scene.display().to_string(),
+        format: data.format,
+        base: "3dgs",
+        resolution: [first.width, first.height],
+        train_views: data.train.len(),
+        test_views: data.test.len(),
+        load_seconds,
+        training,
+        ply_bytes: pwgs_decoder::ply::inria_ply_size(&gaussians),
+        stream: stream.map(|(_, summary)| summary),
+        mean,
+        views,
+    };
+    if let Some(path) = &job.report {
+        write_report(path, &report)?;
+    }
+    Ok(report)
+}
+
+/// Trains to the end, with a progress bar on a terminal and a line every 100 iterations
+/// without one (logs, CI).
+fn train_with_progress(trainer: &mut Trainer, iterations: u32) -> Result<TrainSummary> {
+    let bar = ProgressBar::new(u64::from(iterations));
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed_precise}<{eta_precise}] {msg}")
+            .expect("valid template"),
+    );
+    let mut timer = (Instant::now(), 0u32);
+    let result = train(trainer, |it, step| {
+        bar.set_position(u64::from(it));
+        if it % 10 == 0 || it == iterations {
+            let rate = (it - timer.1) as f64 / timer.0.elapsed().as_secs_f64().max(1e-9);
+            timer = (Instant::now(), it);
+            let message =
+                format!("loss {:.4}  PSNR {:.2}  Gaussians {}  {rate:.2} it/s", step.loss, step.psnr, step.gaussians);
+            if bar.is_hidden() && (it % 100 == 0 || it == iterations) {
+                eprintln!("iteration {it}/{iterations}  {message}");
+            }
+            bar.set_message(message);
+        }
+    });
+    bar.finish();
+    result
+}
+
+/// Quantizes f with steps chosen on renders of the first training views: the coarsest whose
+/// residual stays within a quarter of a gray level of the float network's.
+fn quantize_wrapper(
+    weights: &SynthesisWeights,
+    g: &Gaussians,
+    data: &Dataset,
+    frame: SceneFrame,
+    options: &RenderOptions,
+) -> QuantizedSynthesis {
+    let samples: Vec<QuantizationSample> = data
+        .train
+        .iter()
+        .take(2)
+        .map(|view| QuantizationSample {
+            base: render(g, &view.camera, options).data,
+            conditioning: conditioning(&weights.config, &view.camera, frame),
+            width: view.camera.width as usize,
+            height: view.camera.height as usize,
+        })
+        .collect();
+    choose_quantization(weights, &samples, 0.25 / 255.0)
+}
