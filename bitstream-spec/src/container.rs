@@ -6,6 +6,9 @@
 
 use crate::{MAGIC, MAJOR_VERSION, MAX_SECTION_LEN, MAX_SECTIONS, MINOR_VERSION};
 
+/// Bytes a section takes besides its payload: tag, length and CRC.
+pub const SECTION_OVERHEAD: usize = 12;
+
 /// A four-byte section tag. An upper-case first byte marks a critical section (a decoder that
 /// does not know it must refuse the stream); a lower-case first byte an optional one (skipped).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -160,8 +163,8 @@ fn take<'a>(bytes: &'a [u8], at: usize, len: usize, what: &'static str) -> Resul
 pub fn write_container(sections: &[(Tag, Vec<u8>)]) -> Vec<u8> {
     assert!(sections.first().is_some_and(|(tag, _)| *tag == Tag::HEAD), "the first section must be HEAD");
     assert!(sections.len() <= MAX_SECTIONS, "too many sections");
-    let total: usize = sections.iter().map(|(_, p)| p.len() + 12).sum();
-    let mut out = Vec::with_capacity(MAGIC.len() + 4 + total + 12);
+    let total: usize = sections.iter().map(|(_, p)| p.len() + SECTION_OVERHEAD).sum();
+    let mut out = Vec::with_capacity(MAGIC.len() + 4 + total + SECTION_OVERHEAD);
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&MAJOR_VERSION.to_le_bytes());
     out.extend_from_slice(&MINOR_VERSION.to_le_bytes());

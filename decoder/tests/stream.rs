@@ -380,3 +380,25 @@ fn sh_rest_must_be_absent_at_degree_zero_and_checks_run_in_spec_order() {
     let err = stream::decode(&two).unwrap_err().to_string();
     assert!(err.contains("ROTN"), "{err}");
 }
+
+/// 400 identical Gaussians in two grid cells code to less than a byte per Gaussian: the writer
+/// pads such a stream, so that what it writes decodes (a fuzz finding: it did not).
+#[test]
+fn redundant_content_is_padded_to_a_byte_per_gaussian() {
+    let mut content = random_content(400, 0, 11);
+    content.positions = (0..400).map(|i| [i % 2, 0, 0]).collect();
+    content.log_scales.fill([-80; 3]);
+    content.rotations.fill(QuantizedRotation { largest: 0, rest: [0; 3] });
+    content.opacity_logits.fill(3);
+    content.sh_dc.fill([1, 2, 3]);
+    let bytes = encode(&content);
+    assert!(bytes.len() >= 400, "{} bytes for 400 Gaussians", bytes.len());
+    let c = pwgs_bitstream::Container::parse(&bytes).unwrap();
+    let pad = c.section(stream::PADDING).expect("padded");
+    assert_eq!(bytes.len(), 400.max(bytes.len() - pad.payload.len()));
+    assert!(pad.payload.len() + pwgs_bitstream::SECTION_OVERHEAD < 400);
+    assert_eq!(stream::decode(&bytes).unwrap().content, reordered(&content));
+    // Real content needs no padding.
+    let plain = encode(&random_content(400, 0, 11));
+    assert!(pwgs_bitstream::Container::parse(&plain).unwrap().section(stream::PADDING).is_none());
+}

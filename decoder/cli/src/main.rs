@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use pwgs_bitstream::Container;
+use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_dataset::{LoadOptions, load_cameras};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
@@ -144,9 +144,9 @@ fn print_info(path: &Path, bytes: &[u8], container: &Container, header: &stream:
     println!("background    {:?}", header.background);
     println!("sections      (bytes incl. 12 bytes of tag, length and CRC)");
     for s in &container.sections {
-        let share = 100.0 * (s.payload.len() + 12) as f64 / bytes.len() as f64;
+        let share = 100.0 * (s.payload.len() + SECTION_OVERHEAD) as f64 / bytes.len() as f64;
         let kind = if s.tag.is_critical() { "" } else { "  (optional)" };
-        println!("  {}  {:>10}  {share:5.1}%{kind}", s.tag, s.payload.len() + 12);
+        println!("  {}  {:>10}  {share:5.1}%{kind}", s.tag, s.payload.len() + SECTION_OVERHEAD);
     }
 }
 

@@ -7,7 +7,7 @@ pub mod octree;
 pub mod plain;
 pub mod wrap;
 
-use pwgs_bitstream::{Container, FieldError, StreamError, Tag, write_container};
+use pwgs_bitstream::{Container, FieldError, SECTION_OVERHEAD, StreamError, Tag, write_container};
 use sha2::{Digest, Sha256};
 
 use crate::gaussians::Gaussians;
@@ -68,8 +68,20 @@ pub fn encode(
     if let Some(w) = wrapper {
         sections.push((WRAPPER, w.write()));
     }
-    Ok(write_container(&sections))
+    let bytes = write_container(&sections);
+    // Content far more redundant than any real scene (e.g. hundreds of identical Gaussians)
+    // can code to less than a byte per Gaussian, which decoders refuse (SPEC.md section 9):
+    // an optional section of zeros pads such a stream to the length its count needs.
+    let needed = header.gaussian_count as usize;
+    if bytes.len() < needed {
+        sections.push((PADDING, vec![0; (needed - bytes.len()).saturating_sub(SECTION_OVERHEAD)]));
+        return Ok(write_container(&sections));
+    }
+    Ok(bytes)
 }
+
+/// The optional section that pads a stream to one byte per Gaussian; decoders skip it.
+pub const PADDING: Tag = Tag(*b"pad ");
 
 /// A decoded stream.
 #[derive(Debug, Clone, PartialEq)]

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use pwgs_bitstream::Container;
+use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::stream::attribute_hash;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
@@ -96,7 +96,7 @@ fn write_stream(
     let sections = container
         .sections
         .iter()
-        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + 12))
+        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + SECTION_OVERHEAD))
         .collect();
     let header = &compressed.decoded.header;
     let summary = StreamSummary {
