@@ -189,6 +189,11 @@ struct WrapperArgs {
     /// Side of the square crop WD scores at each step.
     #[arg(long, default_value_t = 128, requires = "wrapper")]
     wd_crop: usize,
+    /// Weight of the base's own objective (0.8 L1 + 0.2 (1 - SSIM)) on the crop of the base
+    /// render, added to WD in stage 2: keeps the Gaussians faithful to the pixels while f
+    /// synthesizes texture (0: WD alone).
+    #[arg(long, default_value_t = 0.0, requires = "wrapper", value_parser = parse_weight)]
+    wd_pixel_weight: f32,
     /// Features WD compares: VGG16 (the reference) or the image alone (cheap, no weights).
     #[arg(long, value_enum, default_value = "vgg", requires = "wrapper")]
     wd_features: FeatureKind,
@@ -208,6 +213,13 @@ fn parse_rate_pair(s: &str) -> Result<[f32; 2], String> {
     match parts.as_deref() {
         Some(&[a, b]) if a > 0.0 && b > 0.0 && a.is_finite() && b.is_finite() => Ok([a, b]),
         _ => Err(format!("`{s}` is not two positive rates start,end")),
+    }
+}
+
+fn parse_weight(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a finite weight >= 0")),
     }
 }
 
@@ -252,6 +264,7 @@ impl WrapperArgs {
             crop: self.wd_crop,
             learning_rate: self.wrapper_lr,
             features,
+            pixel_weight: self.wd_pixel_weight,
         }))
     }
 }

@@ -91,3 +91,35 @@ fn training_resumes_from_an_exported_ply() {
     assert_eq!(resumed.params.to_gaussians(trained.sh_degree), trained);
     assert_eq!(mean_psnr(&resumed.params.to_gaussians(trained.sh_degree), &data), mean_psnr(&trained, &data));
 }
+
+/// Stage 2's pixel term adds the base's own objective on the crop of the base render to WD:
+/// the same first step with and without it differs by a loss in (0, 1].
+#[test]
+fn the_stage_two_pixel_term_adds_the_base_objective() {
+    use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+    use pwgs_encoder::metrics::sigma_map::Log2Sigma;
+    use pwgs_encoder::train::{WdFeatures, WrapperTraining};
+    let tmp = tempfile::tempdir().unwrap();
+    // WD needs views of at least 61 x 61 pixels.
+    generate(tmp.path(), &SyntheticOptions { width: 72, height: 64, views: 6, seed: 4, points: 800 }).unwrap();
+    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
+    let initial = initial_gaussians(&data, 0).unwrap();
+    let first_loss = |pixel_weight: f32| {
+        let mut config = TrainConfig::for_iterations(1);
+        config.wrapper = Some(WrapperTraining {
+            config: WrapperConfig { width: 4, noise: true, plucker: false, seed: 3 },
+            start: 0,
+            log2_sigma: Log2Sigma::Constant(2.0),
+            crop: 64,
+            learning_rate: 0.01,
+            features: WdFeatures::Pixels,
+            pixel_weight,
+        });
+        let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();
+        trainer.step().unwrap().loss
+    };
+    let (wd, both) = (first_loss(0.0), first_loss(1.0));
+    assert!(both > wd && both - wd <= 1.0, "WD {wd}, WD + pixel term {both}");
+    let doubled = first_loss(2.0) - wd;
+    assert!((doubled - 2.0 * (both - wd)).abs() < 1e-5, "the term scales with its weight: {doubled}");
+}

@@ -246,10 +246,24 @@ impl Trainer {
             probe.clone(),
             view,
         );
+        // Stage 2 may keep the base's own objective on the crop of the base render.
+        let pixel_term = match (&self.wrapper, step_crop) {
+            (Some(stage), Some(step)) if stage.pixel_weight() > 0.0 => {
+                let (c, w) = (step.crop, step.window);
+                let crop = |t: Tensor<3>, x0: u32, y0: u32| {
+                    let (x, y) = (x0 as usize, y0 as usize);
+                    t.slice([y..y + c.height as usize, x..x + c.width as usize, 0..3])
+                };
+                let base = crop(image.clone(), c.x0 - w.x0, c.y0 - w.y0);
+                let truth = crop(target.clone().autodiff(), c.x0, c.y0);
+                Some(self.base_loss(base, truth) * stage.pixel_weight())
+            }
+            _ => None,
+        };
         let (loss, shown, wrapper_params) = match (&mut self.wrapper, step_crop) {
             (Some(stage), Some(step)) => {
-                let (loss, shown, params) = stage.loss(view_index, step, image, &target);
-                (loss, shown, Some(params))
+                let (wd, shown, params) = stage.loss(view_index, step, image, &target);
+                (pixel_term.map_or(wd.clone(), |pixels| wd + pixels), shown, Some(params))
             }
             _ => (self.base_loss(image.clone(), target.clone().autodiff()), image, None),
         };

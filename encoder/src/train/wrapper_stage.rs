@@ -46,6 +46,10 @@ pub struct WrapperTraining {
     pub crop: usize,
     pub learning_rate: f32,
     pub features: WdFeatures,
+    /// Weight of the base's own objective (L1 + SSIM) on the crop of the base render I_base,
+    /// added to WD: it keeps the Gaussians faithful to the pixels while f synthesizes texture
+    /// (0: WD alone).
+    pub pixel_weight: f32,
 }
 
 /// The wrapper's training state.
@@ -231,6 +235,11 @@ impl WrapperStage {
         Some(())
     }
 
+    /// Weight of the pixel term on the base render (see [`WrapperTraining::pixel_weight`]).
+    pub fn pixel_weight(&self) -> f32 {
+        self.settings.pixel_weight
+    }
+
     /// f's current weights.
     pub fn weights(&self) -> SynthesisWeights {
         host_weights(self.settings.config, self.flat.clone())
@@ -266,6 +275,7 @@ mod tests {
             crop: 64,
             learning_rate: 0.01,
             features: WdFeatures::Pixels,
+            pixel_weight: 0.0,
         };
         let frame = SceneFrame { center: glam::Vec3::ZERO, scale: 1.0 };
         let mut rng = SplitMix64(1);
