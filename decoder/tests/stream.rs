@@ -402,3 +402,16 @@ fn redundant_content_is_padded_to_a_byte_per_gaussian() {
     let plain = encode(&random_content(400, 0, 11));
     assert!(pwgs_bitstream::Container::parse(&plain).unwrap().section(stream::PADDING).is_none());
 }
+
+/// A bad rotation index is reported as ROTN's value is decoded, before a later section's fault.
+#[test]
+fn a_bad_rotation_index_is_reported_before_later_sections() {
+    let mut content = random_content(30, 0, 12);
+    content.rotations[7].largest = 5;
+    let bytes = stream::encode(&header_for(&content), &content, None).unwrap();
+    let err = stream::decode(&bytes).unwrap_err().to_string();
+    assert!(err.contains("ROTN") && err.contains("largest-component index 5"), "{err}");
+    let broken_opacities = with_payload(&bytes, Tag(*b"OPAC"), |p| p.truncate(2));
+    let err = stream::decode(&broken_opacities).unwrap_err().to_string();
+    assert!(err.contains("ROTN") && err.contains("largest-component index 5"), "{err}");
+}

@@ -153,12 +153,18 @@ impl PlainGaussians {
     pub(super) fn read_sections(container: &Container, count: usize, sh_degree: u32) -> Result<Self, DecodeError> {
         let payload = |tag: Tag| container.section(tag).map(|s| s.payload).ok_or(DecodeError::MissingSection(tag));
         let rest = (sh_coeff_count(sh_degree) - 1) * 3;
-        // (tag, steps, channels) of every block, SHRS only when there are SH bands.
-        let blocks: Vec<(Tag, usize, usize)> =
-            [(SCALES, 1, 3), (ROTATIONS, 1, 4), (OPACITIES, 1, 1), (COLORS, 1, 3), (SH_REST, sh_degree as usize, rest)]
-                .into_iter()
-                .filter(|&(_, _, channels)| channels > 0)
-                .collect();
+        // (tag, steps, channels, value check) of every block, SHRS only when there are SH bands.
+        let any: ValueCheck = |_, _| Ok(());
+        let blocks: Vec<(Tag, usize, usize, ValueCheck)> = [
+            (SCALES, 1, 3, any),
+            (ROTATIONS, 1, 4, check_rotation_index),
+            (OPACITIES, 1, 1, any),
+            (COLORS, 1, 3, any),
+            (SH_REST, sh_degree as usize, rest, any),
+        ]
+        .into_iter()
+        .filter(|&(_, _, channels, _)| channels > 0)
+        .collect();
         let positions_payload = payload(POSITIONS)?;
         let block_payloads = blocks.iter().map(|&(tag, ..)| payload(tag)).collect::<Result<Vec<_>, _>>()?;
         if rest == 0 && container.section(SH_REST).is_some() {
@@ -168,7 +174,7 @@ impl PlainGaussians {
         let decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
             .zip(block_payloads)
-            .map(|(&(tag, steps, channels), bytes)| read_block(tag, bytes, steps, channels, count))
+            .map(|(&(tag, steps, channels, check), bytes)| read_block(tag, bytes, (steps, channels, check), count))
             .collect();
         let mut decoded = decoded.into_iter();
         let mut next = || decoded.next().unwrap_or(Ok((vec![], vec![])));
@@ -178,13 +184,10 @@ impl PlainGaussians {
         let (opacity_steps, opacity_logits) = opacities?;
         let (dc_steps, colors) = colors?;
         let (band_steps, sh_rest) = sh_rest?;
-        let mut rotations = Vec::with_capacity(count);
-        for r in rotation_values.chunks_exact(4) {
-            if !(0..4).contains(&r[0]) {
-                return Err(DecodeError::invalid(ROTATIONS, format!("largest-component index {} is not 0..=3", r[0])));
-            }
-            rotations.push(QuantizedRotation { largest: r[0] as u8, rest: [r[1], r[2], r[3]] });
-        }
+        let rotations = rotation_values
+            .chunks_exact(4)
+            .map(|r| QuantizedRotation { largest: r[0] as u8, rest: [r[1], r[2], r[3]] })
+            .collect();
         let triples = |v: Vec<i32>| v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect::<Vec<_>>();
         Ok(Self {
             grid,
@@ -227,6 +230,17 @@ fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u3
 /// A decoded attribute block: its steps and its values, Gaussian-major.
 type Block = (Vec<f32>, Vec<i32>);
 
+/// A constraint on a block's values, checked as each is decoded: `(channel, value)`.
+type ValueCheck = fn(usize, i32) -> Result<(), String>;
+
+/// ROTN's channel 0 is the index of the largest quaternion component (SPEC.md section 6.2).
+fn check_rotation_index(channel: usize, value: i32) -> Result<(), String> {
+    match channel != 0 || (0..=3).contains(&value) {
+        true => Ok(()),
+        false => Err(format!("largest-component index {value} is not 0..=3")),
+    }
+}
+
 /// Block syntax: one frequency table per channel, then the range-coded values, Gaussian by
 /// Gaussian (in `order`), channel by channel.
 fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dyn Fn(usize, usize) -> i32) {
@@ -243,8 +257,13 @@ fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dy
 }
 
 /// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
-/// `count` Gaussians.
-fn read_block(tag: Tag, payload: &[u8], steps: usize, channels: usize, count: usize) -> Result<Block, DecodeError> {
+/// `count` Gaussians, each value passing `check` as it is decoded.
+fn read_block(
+    tag: Tag,
+    payload: &[u8],
+    (steps, channels, check): (usize, usize, ValueCheck),
+    count: usize,
+) -> Result<Block, DecodeError> {
     let name = String::from_utf8_lossy(&tag.0).into_owned();
     let mut r = FieldReader::new(&name, payload);
     let mut step_values = Vec::with_capacity(steps);
@@ -261,8 +280,10 @@ fn read_block(tag: Tag, payload: &[u8], steps: usize, channels: usize, count: us
     let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
     let mut values = Vec::with_capacity(count * channels);
     for _ in 0..count {
-        for table in &tables {
-            values.push(coder.value(table).map_err(coded)?);
+        for (channel, table) in tables.iter().enumerate() {
+            let value = coder.value(table).map_err(coded)?;
+            check(channel, value).map_err(|problem| DecodeError::invalid(tag, problem))?;
+            values.push(value);
         }
     }
     coder.finish().map_err(coded)?;
