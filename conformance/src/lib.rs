@@ -1,43 +1,21 @@
-//! The conformance runner: a decoder conforms when, for every vector in `vectors/`, it
-//! decodes the stream to attributes with the expected SHA-256 (bit-exact: SPEC.md section 7)
-//! and renders each listed camera within the render tolerance (rendering is not bit-normative:
-//! DESIGN.md section 5, rule 5).
+//! The pwgs conformance suite: valid streams with what a decoder must make of them
+//! (`vectors/`), invalid streams and camera files with the refusal each must produce
+//! (`invalid/`), the runner that checks this workspace's decoder library against both, and the
+//! generator that writes the vectors and invalid files it can build from integers alone.
+
+pub mod expected;
+pub mod generator;
+pub mod invalid;
+pub mod valid;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
-use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::stream::{self, attribute_hash};
-use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
-use pwgs_decoder::wrapper::render_shown;
-use serde::Deserialize;
+use anyhow::Result;
 
-/// Largest difference of an 8-bit channel value allowed anywhere.
-pub const MAX_CHANNEL_DIFFERENCE: u8 = 2;
-/// Fraction of channel values that must be within 1 of the expected value.
-pub const WITHIN_ONE_FRACTION: f64 = 0.999;
+pub use invalid::{check_invalid_dir, invalid_dir};
+pub use valid::{RenderCheck, check_noise_pyramids, check_vector};
 
-#[derive(Deserialize)]
-struct Expected {
-    stream: String,
-    version: [u16; 2],
-    gaussians: u32,
-    sh_degree: u32,
-    attribute_sha256: String,
-    /// Whether the stream carries a perceptual wrapper (renders then go through it).
-    #[serde(default)]
-    wrapper: bool,
-    renders: Vec<ExpectedRender>,
-}
-
-#[derive(Deserialize)]
-struct ExpectedRender {
-    camera: String,
-    image: String,
-}
-
-/// The folder holding the vectors.
+/// The folder holding the valid vectors.
 pub fn vectors_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("vectors")
 }
@@ -50,82 +28,4 @@ pub fn vectors() -> Result<Vec<PathBuf>> {
         .collect();
     dirs.sort();
     Ok(dirs)
-}
-
-/// What checking one render found.
-#[derive(Debug)]
-pub struct RenderCheck {
-    pub image: String,
-    pub max_difference: u8,
-    pub within_one: f64,
-}
-
-/// Checks the decoder library against one vector.
-pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
-    let text = std::fs::read_to_string(dir.join("expected.json"))?;
-    let expected: Expected = serde_json::from_str(&text).context("expected.json")?;
-    let stream_path = dir.join(&expected.stream);
-    let bytes = std::fs::read(&stream_path).with_context(|| format!("cannot read {}", stream_path.display()))?;
-    let (container, _) = stream::parse(&bytes)?;
-    if [container.major, container.minor] != expected.version {
-        bail!("version {}.{}, expected {:?}", container.major, container.minor, expected.version);
-    }
-    let decoded = stream::decode(&bytes)?;
-    if decoded.header.gaussian_count != expected.gaussians || decoded.header.sh_degree != expected.sh_degree {
-        bail!("{} Gaussians of degree {}", decoded.header.gaussian_count, decoded.header.sh_degree);
-    }
-    let hash = attribute_hash(&decoded.gaussians);
-    if hash != expected.attribute_sha256 {
-        bail!("decoded attributes hash to {hash}, expected {}", expected.attribute_sha256);
-    }
-    if decoded.wrapper.is_some() != expected.wrapper {
-        bail!("wrapper present: {}, expected {}", decoded.wrapper.is_some(), expected.wrapper);
-    }
-    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
-    let mut checks = Vec::new();
-    for r in &expected.renders {
-        let camera = parse_camera(&std::fs::read_to_string(dir.join(&r.camera))?)?;
-        let ours = render_shown(&decoded.gaussians, decoded.wrapper_view(), &camera, &options).0.to_rgb8();
-        let reference = image::open(dir.join(&r.image))?.to_rgb8();
-        if ours.dimensions() != reference.dimensions() {
-            bail!("{}: rendered {:?}, expected {:?}", r.image, ours.dimensions(), reference.dimensions());
-        }
-        let diffs: Vec<u8> = ours.as_raw().iter().zip(reference.as_raw()).map(|(a, b)| a.abs_diff(*b)).collect();
-        let max_difference = diffs.iter().copied().max().unwrap_or(0);
-        let within_one = diffs.iter().filter(|&&d| d <= 1).count() as f64 / diffs.len() as f64;
-        if max_difference > MAX_CHANNEL_DIFFERENCE || within_one < WITHIN_ONE_FRACTION {
-            bail!("{}: max difference {max_difference}/255, {:.4}% within 1/255", r.image, within_one * 100.0);
-        }
-        checks.push(RenderCheck { image: r.image.clone(), max_difference, within_one });
-    }
-    Ok(checks)
-}
-
-#[derive(Deserialize)]
-struct PinnedPyramid {
-    seed: u64,
-    width: usize,
-    height: usize,
-    sha256: String,
-}
-
-/// Checks the decoder's noise pyramids against `noise_pyramids.json` (SPEC.md section 11.1:
-/// they are bit-normative). Returns how many were checked.
-pub fn check_noise_pyramids() -> Result<usize> {
-    let path = vectors_dir().join("noise_pyramids.json");
-    let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-    let pinned: Vec<PinnedPyramid> = serde_json::from_str(&text).context("noise_pyramids.json")?;
-    for p in &pinned {
-        let hash = pyramid_sha256(&noise_pyramid(p.seed, p.width, p.height));
-        if hash != p.sha256 {
-            bail!(
-                "noise pyramid of seed {} at {}x{} hashes to {hash}, expected {}",
-                p.seed,
-                p.width,
-                p.height,
-                p.sha256
-            );
-        }
-    }
-    Ok(pinned.len())
 }
