@@ -4,7 +4,8 @@
 //! - pwgs: `{"width", "height", "fx", "fy", "cx", "cy", "camera_to_world"}` with a 4x4
 //!   row-major camera-to-world matrix in OpenCV axes (x right, y down, z forward);
 //! - a nerfstudio/Blender frame: `"transform_matrix"` (4x4 row-major, OpenGL axes) with
-//!   `"w"`, `"h"` and either `"fl_x"` (`"fl_y"`, `"cx"`, `"cy"` optional) or `"camera_angle_x"`.
+//!   `"w"`, `"h"` and either `"fl_x"` (`"fl_y"`, `"cx"`, `"cy"` optional) or `"camera_angle_x"`
+//!   (radians, strictly between 0 and pi).
 
 use glam::{DMat4, Mat4};
 use serde::{Deserialize, Serialize};
@@ -58,6 +59,28 @@ fn matrix(rows: &[[f64; 4]; 4]) -> Result<Mat4, CameraJsonError> {
     Ok(DMat4::from_cols_array_2d(rows).transpose().as_mat4())
 }
 
+/// An intrinsic as the camera stores it: a value beyond f32's range would become infinite (or
+/// zero) there and be reported as something the file does not say.
+fn intrinsic(value: f64, name: &str) -> Result<f32, CameraJsonError> {
+    let single = value as f32;
+    if single.is_finite() && (single != 0.0 || value == 0.0) {
+        Ok(single)
+    } else {
+        Err(CameraJsonError::Invalid(format!("`{name}` = {value:e} is outside the range of a 32-bit float")))
+    }
+}
+
+/// The focal length for a field of view of `angle` radians across `extent` pixels. An angle
+/// outside (0, pi) has no such focal length (an angle in degrees is the common mistake): it
+/// would give an infinite, negative or near-zero one.
+pub fn focal_from_angle(angle: f64, extent: f64, name: &str) -> Result<f64, String> {
+    if angle > 0.0 && angle < std::f64::consts::PI {
+        Ok(0.5 * extent / (0.5 * angle).tan())
+    } else {
+        Err(format!("`{name}` = {angle} is not a field of view in radians (0 < angle < pi)"))
+    }
+}
+
 fn size(value: f64, name: &str) -> Result<u32, CameraJsonError> {
     if value >= 1.0 && value <= f64::from(u16::MAX) && value.fract() == 0.0 {
         Ok(value as u32)
@@ -85,10 +108,10 @@ pub fn parse_camera(text: &str) -> Result<Camera, CameraJsonError> {
             let intrinsics = Intrinsics {
                 width: size(f64::from(c.width), "width")?,
                 height: size(f64::from(c.height), "height")?,
-                fx: c.fx as f32,
-                fy: c.fy as f32,
-                cx: c.cx as f32,
-                cy: c.cy as f32,
+                fx: intrinsic(c.fx, "fx")?,
+                fy: intrinsic(c.fy, "fy")?,
+                cx: intrinsic(c.cx, "cx")?,
+                cy: intrinsic(c.cy, "cy")?,
             };
             Camera::from_camera_to_world(intrinsics, matrix(&c.camera_to_world)?).map_err(invalid)
         }
@@ -96,7 +119,9 @@ pub fn parse_camera(text: &str) -> Result<Camera, CameraJsonError> {
             let (width, height) = (size(f.w, "w")?, size(f.h, "h")?);
             let fx = match (f.fl_x, f.camera_angle_x) {
                 (Some(fx), _) => fx,
-                (None, Some(angle)) => 0.5 * f.w / (0.5 * angle).tan(),
+                (None, Some(angle)) => {
+                    focal_from_angle(angle, f.w, "camera_angle_x").map_err(CameraJsonError::Invalid)?
+                }
                 (None, None) => {
                     return Err(CameraJsonError::Invalid("no focal length (`fl_x` or `camera_angle_x`)".into()));
                 }
@@ -104,10 +129,10 @@ pub fn parse_camera(text: &str) -> Result<Camera, CameraJsonError> {
             let intrinsics = Intrinsics {
                 width,
                 height,
-                fx: fx as f32,
-                fy: f.fl_y.unwrap_or(fx) as f32,
-                cx: f.cx.unwrap_or(f.w / 2.0) as f32,
-                cy: f.cy.unwrap_or(f.h / 2.0) as f32,
+                fx: intrinsic(fx, "fl_x")?,
+                fy: intrinsic(f.fl_y.unwrap_or(fx), "fl_y")?,
+                cx: intrinsic(f.cx.unwrap_or(f.w / 2.0), "cx")?,
+                cy: intrinsic(f.cy.unwrap_or(f.h / 2.0), "cy")?,
             };
             Camera::from_opengl_camera_to_world(intrinsics, matrix(&f.transform_matrix)?).map_err(invalid)
         }
@@ -180,6 +205,28 @@ mod tests {
             ),
             ("{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], \"w\": 10, \"h\": 10}", "focal"),
             ("{\"width\": 10,", "not a camera"),
+            // An angle in degrees would give a plausible but wrong focal length; pi a near-zero one.
+            (
+                "{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], \"w\": 10, \"h\": 10, \"camera_angle_x\": 50}",
+                "`camera_angle_x` = 50 is not a field of view in radians",
+            ),
+            (
+                "{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], \"w\": 10, \"h\": 10, \"camera_angle_x\": 3.141592653589793}",
+                "`camera_angle_x` = 3.141592653589793 is not a field of view",
+            ),
+            (
+                "{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], \"w\": 10, \"h\": 10, \"camera_angle_x\": 0}",
+                "`camera_angle_x` = 0 is not a field of view",
+            ),
+            // Beyond f32: would be reported as an infinite or zero focal length the file does not hold.
+            (
+                "{\"width\": 10, \"height\": 10, \"fx\": 1e39, \"fy\": 1, \"cx\": 0, \"cy\": 0, \"camera_to_world\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}",
+                "`fx` = 1e39 is outside the range of a 32-bit float",
+            ),
+            (
+                "{\"transform_matrix\": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], \"w\": 10, \"h\": 10, \"fl_x\": 1e-50}",
+                "`fl_x` = 9.999999999999999e-51 is outside the range", // serde_json's parse of 1e-50
+            ),
         ];
         for (text, needle) in cases {
             let err = parse_camera(text).unwrap_err().to_string();

@@ -2,12 +2,14 @@
 //!
 //! Properties are read by name, never by position, so files whose writers ordered them
 //! differently (or left out normals or `f_rest_*`) load the same. ASCII and both binary
-//! encodings are parsed; every element before the vertex element is skipped properly, list
-//! properties included. Declared counts are checked against the bytes actually present before
-//! anything is allocated, so a corrupt header cannot trigger a huge allocation.
+//! encodings are parsed, see [`vertex_table`] for how a hostile header or body is kept from
+//! causing harm.
 
-use std::collections::HashMap;
+mod vertex_table;
+
 use std::path::Path;
+
+pub use vertex_table::{VertexTable, read_vertex_table};
 
 use crate::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 
@@ -33,283 +35,20 @@ pub enum PlyProblem {
     MissingProperty(String),
     #[error("{0} f_rest_* properties do not make a whole SH degree up to {MAX_SH_DEGREE}")]
     BadShCount(usize),
+    #[error(
+        "vertex property `{name}` breaks the f_rest_* numbering: the properties from f_rest_0 on stop after \
+         {consecutive}"
+    )]
+    ShGap { name: String, consecutive: usize },
     #[error("data ends early: element `{element}` row {row} of {count}")]
     Truncated { element: String, row: usize, count: usize },
+    #[error(
+        "element `{element}` declares {count} rows, but the {bytes} data bytes left hold at most {max_rows}; \
+         the file is truncated or its header corrupt"
+    )]
+    CountTooLarge { element: String, count: usize, bytes: usize, max_rows: usize },
     #[error("bad value in element `{element}` row {row}: {message}")]
     BadValue { element: String, row: usize, message: String },
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Encoding {
-    Ascii,
-    BinaryLittleEndian,
-    BinaryBigEndian,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Scalar {
-    I8,
-    U8,
-    I16,
-    U16,
-    I32,
-    U32,
-    F32,
-    F64,
-}
-
-impl Scalar {
-    fn parse(name: &str) -> Option<Self> {
-        Some(match name {
-            "char" | "int8" => Self::I8,
-            "uchar" | "uint8" => Self::U8,
-            "short" | "int16" => Self::I16,
-            "ushort" | "uint16" => Self::U16,
-            "int" | "int32" => Self::I32,
-            "uint" | "uint32" => Self::U32,
-            "float" | "float32" => Self::F32,
-            "double" | "float64" => Self::F64,
-            _ => return None,
-        })
-    }
-
-    fn size(self) -> usize {
-        match self {
-            Self::I8 | Self::U8 => 1,
-            Self::I16 | Self::U16 => 2,
-            Self::I32 | Self::U32 | Self::F32 => 4,
-            Self::F64 => 8,
-        }
-    }
-
-    fn read_binary(self, bytes: &[u8], big_endian: bool) -> f64 {
-        macro_rules! conv {
-            ($t:ty, $n:expr) => {{
-                let arr: [u8; $n] = bytes[..$n].try_into().expect("length checked by caller");
-                (if big_endian { <$t>::from_be_bytes(arr) } else { <$t>::from_le_bytes(arr) }) as f64
-            }};
-        }
-        match self {
-            Self::I8 => bytes[0] as i8 as f64,
-            Self::U8 => bytes[0] as f64,
-            Self::I16 => conv!(i16, 2),
-            Self::U16 => conv!(u16, 2),
-            Self::I32 => conv!(i32, 4),
-            Self::U32 => conv!(u32, 4),
-            Self::F32 => conv!(f32, 4),
-            Self::F64 => conv!(f64, 8),
-        }
-    }
-}
-
-#[derive(Debug, Clone)]
-enum Property {
-    Scalar { name: String, ty: Scalar },
-    List { count: Scalar, item: Scalar },
-}
-
-#[derive(Debug, Clone)]
-struct Element {
-    name: String,
-    count: usize,
-    properties: Vec<Property>,
-}
-
-/// The vertex element of a PLY file, column by property name. Values are kept in f64 so that
-/// f32 and integer properties convert back exactly.
-#[derive(Debug, Clone)]
-pub struct VertexTable {
-    pub count: usize,
-    columns: HashMap<String, Vec<f64>>,
-}
-
-impl VertexTable {
-    /// A column by property name.
-    pub fn column(&self, name: &str) -> Option<&[f64]> {
-        self.columns.get(name).map(Vec::as_slice)
-    }
-
-    fn require(&self, name: &str) -> Result<&[f64], PlyProblem> {
-        self.column(name).ok_or_else(|| PlyProblem::MissingProperty(name.to_string()))
-    }
-}
-
-struct Header {
-    encoding: Encoding,
-    elements: Vec<Element>,
-    data_start: usize,
-}
-
-fn parse_header(bytes: &[u8]) -> Result<Header, PlyProblem> {
-    let mut pos = 0;
-    let mut line_no = 0;
-    let next_line = |pos: &mut usize| -> Option<String> {
-        let rest = &bytes[*pos..];
-        let end = rest.iter().position(|&b| b == b'\n')?;
-        *pos += end + 1;
-        Some(String::from_utf8_lossy(&rest[..end]).trim_end_matches('\r').to_string())
-    };
-    if next_line(&mut pos).as_deref().map(str::trim) != Some("ply") {
-        return Err(PlyProblem::NotPly);
-    }
-    let header_err = |line: usize, message: &str| PlyProblem::Header { line, message: message.to_string() };
-    let mut encoding = None;
-    let mut elements: Vec<Element> = Vec::new();
-    loop {
-        line_no += 1;
-        let line = next_line(&mut pos).ok_or_else(|| header_err(line_no + 1, "header has no `end_header`"))?;
-        let words: Vec<&str> = line.split_whitespace().collect();
-        match words.as_slice() {
-            ["end_header"] => break,
-            ["comment", ..] | ["obj_info", ..] | [] => {}
-            ["format", fmt, _version] => {
-                encoding = Some(match *fmt {
-                    "ascii" => Encoding::Ascii,
-                    "binary_little_endian" => Encoding::BinaryLittleEndian,
-                    "binary_big_endian" => Encoding::BinaryBigEndian,
-                    _ => return Err(header_err(line_no + 1, &format!("unknown format `{fmt}`"))),
-                })
-            }
-            ["element", name, count] => {
-                let count =
-                    count.parse().map_err(|_| header_err(line_no + 1, &format!("bad element count `{count}`")))?;
-                elements.push(Element { name: name.to_string(), count, properties: Vec::new() });
-            }
-            ["property", "list", count_ty, item_ty, _name] => {
-                let count = Scalar::parse(count_ty)
-                    .ok_or_else(|| header_err(line_no + 1, &format!("unknown type `{count_ty}`")))?;
-                let item = Scalar::parse(item_ty)
-                    .ok_or_else(|| header_err(line_no + 1, &format!("unknown type `{item_ty}`")))?;
-                let element =
-                    elements.last_mut().ok_or_else(|| header_err(line_no + 1, "property before any element"))?;
-                element.properties.push(Property::List { count, item });
-            }
-            ["property", ty, name] => {
-                let ty = Scalar::parse(ty).ok_or_else(|| header_err(line_no + 1, &format!("unknown type `{ty}`")))?;
-                let element =
-                    elements.last_mut().ok_or_else(|| header_err(line_no + 1, "property before any element"))?;
-                element.properties.push(Property::Scalar { name: name.to_string(), ty });
-            }
-            _ => return Err(header_err(line_no + 1, &format!("unexpected line `{line}`"))),
-        }
-    }
-    let encoding = encoding.ok_or_else(|| header_err(1, "no `format` line"))?;
-    Ok(Header { encoding, elements, data_start: pos })
-}
-
-/// Reads values one at a time from the data part of a PLY file.
-enum Cursor<'a> {
-    Ascii(std::str::SplitAsciiWhitespace<'a>),
-    Binary { data: &'a [u8], big_endian: bool },
-}
-
-impl Cursor<'_> {
-    /// The next value; `Ok(None)` when the data ends, `Err` when a token is not a number.
-    fn next(&mut self, ty: Scalar) -> Result<Option<f64>, String> {
-        match self {
-            Self::Ascii(tokens) => match tokens.next() {
-                None => Ok(None),
-                Some(token) => token.parse().map(Some).map_err(|_| format!("`{token}` is not a number")),
-            },
-            Self::Binary { data, big_endian } => {
-                if data.len() < ty.size() {
-                    return Ok(None);
-                }
-                let value = ty.read_binary(data, *big_endian);
-                *data = &data[ty.size()..];
-                Ok(Some(value))
-            }
-        }
-    }
-
-    /// Bytes left, or for ASCII an upper bound on the values left.
-    fn remaining(&self, file_len: usize) -> usize {
-        match self {
-            Self::Ascii(_) => file_len,
-            Self::Binary { data, .. } => data.len(),
-        }
-    }
-}
-
-/// Reads the vertex element of a PLY file held in memory.
-pub fn read_vertex_table(bytes: &[u8]) -> Result<VertexTable, PlyProblem> {
-    let header = parse_header(bytes)?;
-    let data = &bytes[header.data_start..];
-    let mut cursor = match header.encoding {
-        Encoding::Ascii => Cursor::Ascii(
-            std::str::from_utf8(data)
-                .map_err(|_| PlyProblem::BadValue {
-                    element: "data".into(),
-                    row: 0,
-                    message: "ASCII data is not UTF-8".into(),
-                })?
-                .split_ascii_whitespace(),
-        ),
-        Encoding::BinaryLittleEndian => Cursor::Binary { data, big_endian: false },
-        Encoding::BinaryBigEndian => Cursor::Binary { data, big_endian: true },
-    };
-    for element in &header.elements {
-        let is_vertex = element.name == "vertex";
-        // Bound the allocation by what the file can hold: every row takes at least one byte.
-        let min_row = element
-            .properties
-            .iter()
-            .map(|p| match p {
-                Property::Scalar { ty, .. } => ty.size(),
-                Property::List { count, .. } => count.size(),
-            })
-            .sum::<usize>()
-            .max(1);
-        if element.count > cursor.remaining(bytes.len()) / min_row {
-            return Err(PlyProblem::Truncated { element: element.name.clone(), row: 0, count: element.count });
-        }
-        let scalar_count = element.properties.iter().filter(|p| matches!(p, Property::Scalar { .. })).count();
-        let mut columns: Vec<Vec<f64>> =
-            if is_vertex { (0..scalar_count).map(|_| Vec::with_capacity(element.count)).collect() } else { Vec::new() };
-        for row in 0..element.count {
-            let bad = |message: String| PlyProblem::BadValue { element: element.name.clone(), row, message };
-            let read = |cursor: &mut Cursor, ty: Scalar| {
-                cursor.next(ty).map_err(bad)?.ok_or_else(|| PlyProblem::Truncated {
-                    element: element.name.clone(),
-                    row,
-                    count: element.count,
-                })
-            };
-            let mut column = 0;
-            for property in &element.properties {
-                match property {
-                    Property::Scalar { ty, .. } => {
-                        let value = read(&mut cursor, *ty)?;
-                        if is_vertex {
-                            columns[column].push(value);
-                        }
-                        column += 1;
-                    }
-                    Property::List { count, item } => {
-                        let n = read(&mut cursor, *count)?;
-                        if !(n >= 0.0 && n <= u32::MAX as f64) {
-                            return Err(PlyProblem::BadValue {
-                                element: element.name.clone(),
-                                row,
-                                message: format!("list length {n} is not a count"),
-                            });
-                        }
-                        for _ in 0..n as usize {
-                            read(&mut cursor, *item)?;
-                        }
-                    }
-                }
-            }
-        }
-        if is_vertex {
-            let names = element.properties.iter().filter_map(|p| match p {
-                Property::Scalar { name, .. } => Some(name.clone()),
-                Property::List { .. } => None,
-            });
-            return Ok(VertexTable { count: element.count, columns: names.zip(columns).collect() });
-        }
-    }
-    Err(PlyProblem::NoVertexElement)
 }
 
 /// Gaussians loaded from a PLY file, with what had to be repaired on the way.
@@ -342,6 +81,11 @@ pub fn read_gaussians(path: &Path) -> Result<PlyGaussians, PlyError> {
 pub fn gaussians_from_bytes(bytes: &[u8]) -> Result<PlyGaussians, PlyProblem> {
     let table = read_vertex_table(bytes)?;
     let rest_count = (0..).take_while(|i| table.column(&format!("f_rest_{i}")).is_some()).count();
+    // A gap in the numbering would otherwise silently drop the coefficients after it.
+    let rest_names: Vec<String> = (0..rest_count).map(|i| format!("f_rest_{i}")).collect();
+    if let Some(name) = table.names().find(|n| n.starts_with("f_rest_") && !rest_names.iter().any(|r| r == n)) {
+        return Err(PlyProblem::ShGap { name: name.to_string(), consecutive: rest_count });
+    }
     let coeffs = rest_count / 3 + 1;
     let degree = (0..=MAX_SH_DEGREE).find(|&d| sh_coeff_count(d) == coeffs);
     let degree = match degree {
@@ -354,7 +98,7 @@ pub fn gaussians_from_bytes(bytes: &[u8]) -> Result<PlyGaussians, PlyProblem> {
     let rot = [get("rot_0")?, get("rot_1")?, get("rot_2")?, get("rot_3")?];
     let opacity = get("opacity")?;
     let dc = [get("f_dc_0")?, get("f_dc_1")?, get("f_dc_2")?];
-    let rest: Vec<&[f64]> = (0..rest_count).map(|i| get(&format!("f_rest_{i}"))).collect::<Result<_, _>>()?;
+    let rest: Vec<&[f64]> = rest_names.iter().map(|name| get(name)).collect::<Result<_, _>>()?;
 
     let mut out =
         PlyGaussians { gaussians: Gaussians::with_degree(degree), dropped_non_finite: 0, clamped_opacities: 0 };
@@ -452,21 +196,41 @@ pub struct PointCloud {
     pub colors: Vec<[f32; 3]>,
 }
 
-/// Reads a point cloud from PLY bytes: `x, y, z` and optionally `red, green, blue` (uchar, or
-/// float in [0, 1]). Points with non-finite coordinates are dropped.
+/// Reads a point cloud from PLY bytes: `x, y, z` and optionally `red, green, blue`. Integer
+/// colors are scaled by their type's maximum (255 for `uchar`); float colors are taken as
+/// [0, 1], or as 0 to 255 when some value exceeds 1 (writers differ). A non-finite position or
+/// color is an error: unlike a trained model's Gaussians (see [`PlyGaussians`]), a point cloud
+/// has no known producer of such values, so one means a corrupt file.
 pub fn point_cloud_from_bytes(bytes: &[u8]) -> Result<PointCloud, PlyProblem> {
     let table = read_vertex_table(bytes)?;
     let pos = [table.require("x")?, table.require("y")?, table.require("z")?];
-    let colors = ["red", "green", "blue"].map(|n| table.column(n));
-    let max_color = colors.iter().flatten().flat_map(|c| c.iter()).fold(0.0f64, |m, &v| m.max(v));
-    let color_scale = if max_color > 1.0 { 1.0 / 255.0 } else { 1.0 };
+    let colors = ["red", "green", "blue"].map(|n| table.column(n).map(|values| (n, values)));
+    let integer_max = |name: &str| table.column_type(name).and_then(|ty| ty.integer_range()).map(|(_, max)| max);
+    let float_0_to_255 =
+        colors.iter().flatten().any(|&(name, values)| integer_max(name).is_none() && values.iter().any(|&v| v > 1.0));
+    let color_scale = colors.map(|color| {
+        let (name, _) = color?;
+        Some(match integer_max(name) {
+            Some(max) => 1.0 / max,
+            None if float_0_to_255 => 1.0 / 255.0,
+            None => 1.0,
+        })
+    });
+    let bad = |row: usize, message: String| PlyProblem::BadValue { element: "vertex".into(), row, message };
     let mut cloud = PointCloud::default();
     for i in 0..table.count {
         let p = pos.map(|c| c[i] as f32);
         if !p.iter().all(|v| v.is_finite()) {
-            continue;
+            return Err(bad(i, format!("position {:?} is not finite (in f32)", pos.map(|c| c[i]))));
         }
-        let rgb = colors.map(|c| c.map_or(0.5, |c| (c[i] * color_scale).clamp(0.0, 1.0) as f32));
+        let mut rgb = [0.5f32; 3];
+        for (channel, (color, scale)) in colors.iter().zip(color_scale).enumerate() {
+            let (Some((name, values)), Some(scale)) = (color, scale) else { continue };
+            if !values[i].is_finite() {
+                return Err(bad(i, format!("color `{name}` is {}", values[i])));
+            }
+            rgb[channel] = (values[i] * scale).clamp(0.0, 1.0) as f32;
+        }
         cloud.positions.push(p);
         cloud.colors.push(rgb);
     }
@@ -556,11 +320,97 @@ mod tests {
             assert!(gaussians_from_bytes(&bytes[..cut]).is_err(), "cut at {cut}");
         }
         let huge = String::from_utf8_lossy(&bytes).replacen("element vertex 5", "element vertex 99999999999", 1);
-        assert!(matches!(gaussians_from_bytes(huge.as_bytes()), Err(PlyProblem::Truncated { .. })));
+        let err = gaussians_from_bytes(huge.as_bytes()).unwrap_err();
+        assert!(matches!(err, PlyProblem::CountTooLarge { .. }), "{err:?}");
+        assert!(err.to_string().contains("element `vertex` declares 99999999999 rows"), "{err}");
         let bad_type = b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float128 x\nend_header\n";
         assert!(matches!(gaussians_from_bytes(bad_type), Err(PlyProblem::Header { .. })));
         let no_scale = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n1\n";
         assert!(matches!(gaussians_from_bytes(no_scale), Err(PlyProblem::MissingProperty(_))));
+    }
+
+    /// The error reading `text` as a point cloud, which must fail.
+    fn cloud_error(text: &str) -> String {
+        point_cloud_from_bytes(text.as_bytes()).expect_err(text).to_string()
+    }
+
+    const XYZ_ASCII: &str = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                             property float z\nend_header\n";
+
+    #[test]
+    fn short_ascii_rows_are_not_mistaken_for_a_truncated_file() {
+        // 50 rows of 6 bytes, where the binary sizes (12 bytes a row) would allow only 25.
+        let text = format!("{}{}", XYZ_ASCII.replace("vertex 3", "vertex 50"), "0 1 2\n".repeat(50));
+        assert_eq!(point_cloud_from_bytes(text.as_bytes()).unwrap().positions, vec![[0.0, 1.0, 2.0]; 50]);
+        let text = format!("{}{}", XYZ_ASCII.replace("vertex 3", "vertex 51"), "0 1 2\n".repeat(50));
+        assert!(cloud_error(&text).contains("element `vertex` declares 51 rows"));
+    }
+
+    #[test]
+    fn an_ascii_line_with_a_value_too_many_or_too_few_is_an_error() {
+        // Reading values as one stream would shift every later value instead.
+        let err = cloud_error(&format!("{XYZ_ASCII}0 1 2\n3 4 5 6\n7 8 9\n"));
+        assert!(err.contains("row 1: the line has more values than the header declares (`6` is extra)"), "{err}");
+        let err = cloud_error(&format!("{XYZ_ASCII}0 1 2\n3 4\n5 6 7\n8 9 10\n"));
+        assert!(err.contains("row 1: the line has fewer values than the header declares"), "{err}");
+        // Blank lines between rows are fine; a missing last row is truncation.
+        assert_eq!(
+            point_cloud_from_bytes(format!("{XYZ_ASCII}\n0 1 2\n\n3 4 5\r\n6 7 8").as_bytes()).unwrap().positions.len(),
+            3
+        );
+        let err = cloud_error(&format!("{XYZ_ASCII}0.000 1.000 2.000\n3 4 5\n"));
+        assert!(err.contains("data ends early: element `vertex` row 2 of 3"), "{err}");
+    }
+
+    #[test]
+    fn ascii_values_must_fit_their_declared_type() {
+        let header = "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar int vertex_indices\n\
+                      element vertex 1\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n\
+                      end_header\n";
+        assert!(cloud_error(&format!("{header}0\n0 0 0 300\n")).contains("row 0: `300` is not a `uchar` value"));
+        assert!(cloud_error(&format!("{header}0\n0 0 0 1.5\n")).contains("`1.5` is not a `uchar` value"));
+        let err = cloud_error(&format!("{header}2.5 0 1\n0 0 0 1\n"));
+        assert!(err.contains("element `face` row 0: `2.5` is not a `uchar` value"), "{err}");
+        let float_count = header.replace("list uchar int", "list float int");
+        let err = cloud_error(&format!("{float_count}1 0\n0 0 0 1\n"));
+        assert!(err.contains("list `vertex_indices` has count type `float`, which is not an integer type"), "{err}");
+    }
+
+    #[test]
+    fn a_property_declared_twice_is_an_error() {
+        let err = cloud_error(&XYZ_ASCII.replace("property float z", "property float x"));
+        assert!(err.contains("header line 6: element `vertex` declares property `x` twice"), "{err}");
+    }
+
+    #[test]
+    fn a_gap_in_the_f_rest_numbering_is_an_error() {
+        // f_rest_0..8 and f_rest_10: without the check, degree 1 and f_rest_10 silently ignored.
+        let text = String::from_utf8_lossy(&gaussians_to_bytes(&sample(1, 2))).into_owned();
+        let text = text.replacen("property float f_rest_8\n", "property float f_rest_8\nproperty float f_rest_10\n", 1);
+        let bytes = [text.as_bytes(), &[0u8; 8]].concat(); // room for the extra float in each row
+        let err = gaussians_from_bytes(&bytes).unwrap_err().to_string();
+        assert!(err.contains("`f_rest_10` breaks the f_rest_* numbering") && err.contains("stop after 9"), "{err}");
+    }
+
+    #[test]
+    fn point_clouds_reject_non_finite_values() {
+        let err = cloud_error(&format!("{XYZ_ASCII}0 1 2\n3 nan 5\n6 7 8\n"));
+        assert!(err.contains("row 1: position [3.0, NaN, 5.0] is not finite"), "{err}");
+        let err = cloud_error(&format!("{XYZ_ASCII}0 1 2\n3 1e39 5\n6 7 8\n"));
+        assert!(err.contains("row 1: position") && err.contains("not finite (in f32)"), "{err}");
+        let colored = XYZ_ASCII.replace("end_header", "property float red\nproperty float green\nend_header");
+        let err = cloud_error(&format!("{colored}0 1 2 0 0\n3 4 5 0.5 inf\n6 7 8 1 1\n"));
+        assert!(err.contains("row 1: color `green` is inf"), "{err}");
+    }
+
+    #[test]
+    fn integer_colors_are_scaled_by_their_type() {
+        // Colors of 0 and 1 in a uchar file are dark, whatever the largest value.
+        let header = XYZ_ASCII
+            .replace("vertex 3", "vertex 1")
+            .replace("end_header", "property uchar red\nproperty ushort green\nend_header");
+        let cloud = point_cloud_from_bytes(format!("{header}0 0 0 1 65535\n").as_bytes()).unwrap();
+        assert_eq!(cloud.colors, vec![[(1.0f64 / 255.0) as f32, 1.0, 0.5]]);
     }
 
     #[test]

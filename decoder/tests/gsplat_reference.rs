@@ -1,16 +1,14 @@
 //! The forward rasterizer against gsplat, an implementation nobody here wrote: 16 Gaussians
-//! with SH degree 3 rendered by gsplat (CUDA, classic mode), from `../shared/reference-renders`.
+//! with SH degree 3 rendered by gsplat (CUDA, classic mode), from `../shared/reference-renders`
+//! (see `shared_data` for when its absence skips and when it fails).
 
-use std::path::Path;
+mod shared_data;
 
 use glam::{Mat3, Vec3};
 use pwgs_decoder::camera::{Camera, Intrinsics};
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, rasterize};
 use safetensors::SafeTensors;
-
-const REFERENCE: &str =
-    concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/reference-renders/gsplat_basic_case.safetensors");
 
 fn floats(tensors: &SafeTensors, name: &str) -> (Vec<usize>, Vec<f32>) {
     let t = tensors.tensor(name).unwrap_or_else(|e| panic!("tensor {name}: {e}"));
@@ -21,11 +19,7 @@ fn floats(tensors: &SafeTensors, name: &str) -> (Vec<usize>, Vec<f32>) {
 
 #[test]
 fn matches_gsplat_basic_case() {
-    let path = Path::new(REFERENCE);
-    if !path.exists() {
-        eprintln!("skipped: {REFERENCE} not found (the shared reference data is not beside the checkout)");
-        return;
-    }
+    let Some(path) = shared_data::path("reference-renders/gsplat_basic_case.safetensors") else { return };
     let bytes = std::fs::read(path).unwrap();
     let tensors = SafeTensors::deserialize(&bytes).unwrap();
     let (_, means) = floats(&tensors, "means");

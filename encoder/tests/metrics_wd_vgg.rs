@@ -1,26 +1,20 @@
 //! Wasserstein Distortion on VGG16 features: the third-party cross-check value of
 //! `shared/metrics-calib/README.md`, the target cache, and (ignored by default) the time of a
-//! forward+backward pass at 504x378. Needs the weights; skips with a message when neither
-//! `shared/weights` nor the user cache has them.
+//! forward+backward pass at 504x378. Needs the weights (see `shared_weights` for when their
+//! absence skips).
 
-use std::path::Path;
+#[path = "../../decoder/tests/shared_data/mod.rs"]
+mod shared_data;
+mod shared_weights;
+
 use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_encoder::metrics::sigma_map::{Log2Sigma, SigmaMap};
 use pwgs_encoder::metrics::vgg_wasserstein::VggWasserstein;
-use pwgs_encoder::metrics::weights::default_dirs;
 
 fn load(device: &Device) -> Option<VggWasserstein> {
-    let mut dirs = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/weights")];
-    dirs.extend(default_dirs());
-    match VggWasserstein::load(&dirs, device) {
-        Ok(wd) => Some(wd),
-        Err(e) => {
-            eprintln!("skipping: {e}");
-            None
-        }
-    }
+    shared_weights::loaded(VggWasserstein::load(&shared_weights::search_dirs(), device))
 }
 
 /// NCHW pattern image: value ((idx·multiplier + offset) mod 256) / 255 at flat index idx.

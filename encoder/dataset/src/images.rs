@@ -88,7 +88,7 @@ fn downscaled_size(path: &Path, width: u32, height: u32, factor: u32) -> Result<
 pub fn downscale(image: &RgbImage, factor: u32) -> RgbImage {
     let (w, h) = (image.width / factor, image.height / factor);
     let mut out = RgbImage::filled(w, h, [0.0; 3]);
-    let norm = 1.0 / (factor * factor) as f32;
+    let norm = 1.0 / (factor as f32 * factor as f32);
     for y in 0..h {
         for x in 0..w {
             let mut sum = [0.0f32; 3];

@@ -11,6 +11,7 @@
 //! This crate is free of Burn so that loading, and the tests of loading, build in seconds.
 
 pub mod colmap;
+mod colmap_scene;
 pub mod images;
 pub mod llff;
 pub mod normalization;

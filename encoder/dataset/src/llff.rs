@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use glam::{DMat4, DVec4};
-use pwgs_decoder::camera::{Camera, Intrinsics};
+use pwgs_decoder::camera::{Camera, Intrinsics, MAX_SIDE};
 
 use crate::DatasetError;
 use crate::npy::read_npy;
@@ -48,8 +48,9 @@ pub fn parse(dir: &Path, image_folder: &Path) -> Result<ParsedScene, DatasetErro
 fn pose_to_camera(row: &[f64]) -> Result<Camera, String> {
     let m = |r: usize, c: usize| row[r * 5 + c];
     let (h, w, f) = (m(0, 4), m(1, 4), m(2, 4));
-    if !(h >= 1.0 && w >= 1.0 && h < 1e6 && w < 1e6) {
-        return Err(format!("bad image size {w}x{h}"));
+    let side = |v: f64| v >= 1.0 && v <= f64::from(MAX_SIDE) && v.fract() == 0.0;
+    if !(side(w) && side(h)) {
+        return Err(format!("image size {w}x{h} is not whole pixels in 1..={MAX_SIDE}"));
     }
     let col = |c: usize| DVec4::new(m(0, c), m(1, c), m(2, c), 0.0);
     // (down, right, back) -> OpenGL (right, up, back).

@@ -2,7 +2,7 @@
 //! learning rates, densification thresholds and the wrapper's Plücker embeddings do not depend
 //! on the units a capture happens to use. Stored in the stream header.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::wrapper::SceneFrame;
 
@@ -16,15 +16,18 @@ pub struct SceneNormalization {
 impl SceneNormalization {
     /// Center of the camera centers, and 1.1 times the largest distance of a camera from it
     /// (the 3DGS "camera extent"). A single camera, or cameras all at one point, give scale 1.
-    pub fn from_cameras(cameras: &[Camera]) -> Self {
+    /// Computed in f64, so that cameras far from the origin cannot overflow the sum; `None`
+    /// when the result does not fit in f32 (or a camera center does not).
+    pub fn from_cameras(cameras: &[Camera]) -> Option<Self> {
         if cameras.is_empty() {
-            return Self { center: Vec3::ZERO, scale: 1.0 };
+            return Some(Self { center: Vec3::ZERO, scale: 1.0 });
         }
-        let centers: Vec<Vec3> = cameras.iter().map(Camera::center).collect();
-        let center = centers.iter().copied().sum::<Vec3>() / centers.len() as f32;
-        let radius = centers.iter().map(|c| c.distance(center)).fold(0.0f32, f32::max);
+        let centers: Vec<DVec3> = cameras.iter().map(|c| c.center().as_dvec3()).collect();
+        let center = centers.iter().copied().sum::<DVec3>() / centers.len() as f64;
+        let radius = centers.iter().map(|c| c.distance(center)).fold(0.0f64, f64::max);
         let scale = if radius > 1e-6 { 1.1 * radius } else { 1.0 };
-        Self { center, scale }
+        let normalization = Self { center: center.as_vec3(), scale: scale as f32 };
+        (normalization.center.is_finite() && normalization.scale.is_finite()).then_some(normalization)
     }
 
     pub fn normalize(&self, p: Vec3) -> Vec3 {
@@ -52,9 +55,22 @@ mod tests {
                     .unwrap()
             })
             .collect();
-        let n = SceneNormalization::from_cameras(&cams);
+        let n = SceneNormalization::from_cameras(&cams).unwrap();
         assert!((n.center - Vec3::new(2.0, 0.0, 0.0)).length() < 1e-6);
         assert!((n.scale - 1.1).abs() < 1e-6);
-        assert_eq!(SceneNormalization::from_cameras(&cams[..1]).scale, 1.0);
+        assert_eq!(SceneNormalization::from_cameras(&cams[..1]).unwrap().scale, 1.0);
+    }
+
+    #[test]
+    fn cameras_far_from_the_origin_do_not_overflow() {
+        let at = |x: f32| {
+            let intrinsics = Intrinsics { width: 4, height: 4, fx: 2.0, fy: 2.0, cx: 2.0, cy: 2.0 };
+            Camera::new(intrinsics, Mat3::IDENTITY, Vec3::new(-x, 0.0, 0.0)).unwrap()
+        };
+        // Their sum overflows f32; the mean does not.
+        let n = SceneNormalization::from_cameras(&[at(3e38), at(3e38)]).unwrap();
+        assert_eq!((n.center.x, n.scale), (3e38, 1.0));
+        // A scale of 1.1 times 3.2e38 does not fit in f32.
+        assert_eq!(SceneNormalization::from_cameras(&[at(3.2e38), at(-3.2e38)]), None);
     }
 }

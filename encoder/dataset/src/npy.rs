@@ -25,7 +25,10 @@ pub fn parse_npy(bytes: &[u8]) -> Result<NpyArray, String> {
     }
     let (header_len, header_start): (usize, usize) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 if bytes.len() >= 12 => (u32::from_le_bytes(bytes[8..12].try_into().expect("4 bytes")) as usize, 12),
+        2 | 3 => match bytes.get(8..12) {
+            Some(len) => (u32::from_le_bytes(len.try_into().expect("4 bytes")) as usize, 12),
+            None => return Err("truncated header".into()),
+        },
         v => return Err(format!("unsupported .npy version {v}")),
     };
     let header_end = header_start.checked_add(header_len).filter(|&e| e <= bytes.len()).ok_or("truncated header")?;

@@ -3,14 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use pwgs_decoder::camera::{Camera, Intrinsics};
+use pwgs_decoder::camera::Camera;
 use pwgs_decoder::ply::PointCloud;
 use pwgs_decoder::rgb_image::RgbImage;
 use rayon::prelude::*;
 
 use crate::normalization::SceneNormalization;
 use crate::undistort::{Distortion, undistort};
-use crate::{DatasetError, colmap, images, llff, transforms};
+use crate::{DatasetError, colmap, colmap_scene, images, llff, transforms};
 
 /// How to load a scene.
 #[derive(Debug, Clone, PartialEq)]
@@ -92,13 +92,10 @@ pub fn load_scene(dir: &Path, options: &LoadOptions) -> Result<Dataset, DatasetE
     let train = load_views(scene.train, scene.factor, options.background)?;
     let test = load_views(scene.test, scene.factor, options.background)?;
     let cameras: Vec<Camera> = train.iter().map(|v| v.camera).collect();
-    Ok(Dataset {
-        format: scene.format,
-        normalization: SceneNormalization::from_cameras(&cameras),
-        train,
-        test,
-        points: scene.points,
-    })
+    let normalization = SceneNormalization::from_cameras(&cameras).ok_or_else(|| {
+        DatasetError::malformed(dir, "the training cameras are too far apart to normalize the scene in 32-bit floats")
+    })?;
+    Ok(Dataset { format: scene.format, normalization, train, test, points: scene.points })
 }
 
 /// The cameras [`load_scene`] would give the views, reading only the images' headers: renderers
@@ -138,7 +135,7 @@ fn parse_and_split(dir: &Path, options: &LoadOptions) -> Result<SplitScene, Data
     }
     let (parsed, factor) = if let Some(model_dir) = colmap::find_model_dir(dir) {
         let source = images::choose_source(dir, "images", options.downscale)?;
-        (colmap_scene(&model_dir, &source.folder)?, source.extra_factor)
+        (colmap_scene::parse(&model_dir, &source.folder)?, source.extra_factor)
     } else if transforms::detect(dir) {
         (transforms::parse(dir)?, options.downscale)
     } else if dir.join(llff::POSES_FILE).is_file() {
@@ -190,69 +187,4 @@ fn fit_camera(spec: &ViewSpec, width: u32, height: u32) -> Result<Camera, Datase
         ));
     }
     spec.camera.resized(width, height).map_err(|source| DatasetError::Camera { path: spec.image_path.clone(), source })
-}
-
-/// Turns a COLMAP model into views, matching its image names to the image folder: by name
-/// (any extension), or, when none of the names exist (LLFF-style renamed copies such as fern's
-/// `image000.png` for `IMG_4026.JPG`), by sorted order if the counts agree.
-fn colmap_scene(model_dir: &Path, image_folder: &Path) -> Result<ParsedScene, DatasetError> {
-    let model = colmap::read_model(model_dir)?;
-    let mut model_images: Vec<&colmap::ColmapImage> = model.images.iter().collect();
-    model_images.sort_by(|a, b| a.name.cmp(&b.name));
-    let files = images::list_images(image_folder)?;
-    let by_name: Vec<Option<PathBuf>> = model_images.iter().map(|im| find_by_name(&files, &im.name)).collect();
-    let paths: Vec<PathBuf> = if by_name.iter().all(Option::is_some) {
-        by_name.into_iter().flatten().collect()
-    } else if by_name.iter().all(Option::is_none) && files.len() == model_images.len() {
-        files
-    } else {
-        let missing = model_images.iter().zip(&by_name).find(|(_, p)| p.is_none()).map(|(im, _)| im.name.as_str());
-        return Err(DatasetError::malformed(
-            image_folder,
-            format!(
-                "image `{}` of the COLMAP model is missing ({} model images, {} files)",
-                missing.unwrap_or_default(),
-                model_images.len(),
-                files.len()
-            ),
-        ));
-    };
-    let views = model_images
-        .iter()
-        .zip(paths)
-        .map(|(im, image_path)| {
-            let cam = model.cameras.iter().find(|c| c.id == im.camera_id).ok_or_else(|| {
-                DatasetError::malformed(model_dir, format!("image `{}` uses unknown camera {}", im.name, im.camera_id))
-            })?;
-            let distortion = cam.distortion(model_dir)?;
-            let rotation = pwgs_decoder::camera::quaternion_to_matrix(im.qvec).ok_or_else(|| {
-                DatasetError::malformed(model_dir, format!("image `{}` has a zero or non-finite quaternion", im.name))
-            })?;
-            let [fx, fy, cx, cy] = cam.pinhole().map(|v| v as f32);
-            let translation = glam::DVec3::from(im.tvec).as_vec3();
-            let (w, h) = (u32::try_from(cam.width), u32::try_from(cam.height));
-            let (Ok(w), Ok(h)) = (w, h) else {
-                return Err(DatasetError::malformed(model_dir, format!("camera {} has an absurd size", cam.id)));
-            };
-            let camera = Camera::new(Intrinsics { width: w, height: h, fx, fy, cx, cy }, rotation, translation)
-                .map_err(|source| DatasetError::Camera { path: model_dir.join(&im.name), source })?;
-            Ok(ViewSpec { name: im.name.clone(), image_path, camera, distortion })
-        })
-        .collect::<Result<_, DatasetError>>()?;
-    let points = PointCloud {
-        positions: model.points.iter().map(|p| p.xyz.map(|v| v as f32)).collect(),
-        colors: model.points.iter().map(|p| p.rgb.map(|c| c as f32 / 255.0)).collect(),
-    };
-    Ok(ParsedScene { format: "COLMAP", views, explicit_test: None, points: Some(points) })
-}
-
-/// A file whose name equals `name`, or whose stem does (images re-encoded to another format).
-fn find_by_name(files: &[PathBuf], name: &str) -> Option<PathBuf> {
-    let name = Path::new(name);
-    let stem = name.file_stem();
-    files
-        .iter()
-        .find(|f| f.file_name() == name.file_name())
-        .or_else(|| files.iter().find(|f| f.file_stem() == stem))
-        .cloned()
 }

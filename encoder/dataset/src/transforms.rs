@@ -10,7 +10,8 @@
 use std::path::{Path, PathBuf};
 
 use glam::DMat4;
-use pwgs_decoder::camera::{Camera, Intrinsics};
+use pwgs_decoder::camera::{Camera, Intrinsics, MAX_SIDE};
+use pwgs_decoder::camera_json::focal_from_angle;
 use pwgs_decoder::ply::{PlyError, PointCloud};
 use serde::Deserialize;
 
@@ -131,33 +132,36 @@ fn frame_view(
     let distortion = distortion(&fields).map_err(|m| DatasetError::unsupported(path, format!("frame {index}: {m}")))?;
     // Intrinsics are given for (w, h) when stated, else for the image as stored.
     let (w, h) = (fields.w.unwrap_or(img_w as f64), fields.h.unwrap_or(img_h as f64));
+    if !(w >= 1.0
+        && h >= 1.0
+        && w <= f64::from(MAX_SIDE)
+        && h <= f64::from(MAX_SIDE)
+        && w.fract() == 0.0
+        && h.fract() == 0.0)
+    {
+        return Err(context(format!("intrinsic image size {w}x{h} is not whole pixels in 1..={MAX_SIDE}")));
+    }
     let (fx, fy) = match (fields.fl_x, fields.fl_y, fields.camera_angle_x) {
         (Some(fx), fy, _) => (fx, fy.unwrap_or(fx)),
         (None, _, Some(angle_x)) => {
-            let fx = 0.5 * w / (0.5 * angle_x).tan();
-            let fy = fields.camera_angle_y.map_or(fx, |a| 0.5 * h / (0.5 * a).tan());
+            let fx = focal_from_angle(angle_x, w, "camera_angle_x").map_err(context)?;
+            let fy = match fields.camera_angle_y {
+                Some(angle_y) => focal_from_angle(angle_y, h, "camera_angle_y").map_err(context)?,
+                None => fx,
+            };
             (fx, fy)
         }
         (None, _, None) => return Err(context("no focal length (`fl_x` or `camera_angle_x`)".into())),
     };
     let (cx, cy) = (fields.cx.unwrap_or(w / 2.0), fields.cy.unwrap_or(h / 2.0));
-    if !(w >= 1.0 && h >= 1.0 && w <= u32::MAX as f64 && h <= u32::MAX as f64) {
-        return Err(context(format!("bad intrinsic image size {w}x{h}")));
-    }
     let m = frame.transform_matrix;
     let c2w = DMat4::from_cols_array_2d(&m).transpose().as_mat4();
     let camera = Camera::from_opengl_camera_to_world(
-        Intrinsics {
-            width: w.round() as u32,
-            height: h.round() as u32,
-            fx: fx as f32,
-            fy: fy as f32,
-            cx: cx as f32,
-            cy: cy as f32,
-        },
+        Intrinsics { width: w as u32, height: h as u32, fx: fx as f32, fy: fy as f32, cx: cx as f32, cy: cy as f32 },
         c2w,
     )
     .map_err(|e| context(format!("camera rejected: {e}")))?;
+    distortion.check(&camera).map_err(context)?;
     let name = image_path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
     Ok(ViewSpec { name, image_path, camera, distortion })
 }

@@ -6,6 +6,7 @@ use std::path::Path;
 use pwgs_dataset::colmap::{
     CameraModel, ColmapCamera, ColmapImage, ColmapModel, ColmapPoint, write_binary, write_text,
 };
+use pwgs_dataset::npy::{NpyArray, encode_npy};
 use pwgs_dataset::synthetic::{SyntheticOptions, cameras, generate};
 use pwgs_dataset::{Dataset, DatasetError, LoadOptions, load_cameras, load_scene};
 use pwgs_decoder::camera::matrix_to_quaternion;
@@ -52,6 +53,17 @@ fn downscale_halves_images_and_intrinsics() {
 
 /// Writes the generated scene's cameras as a COLMAP model next to its images.
 fn as_colmap(data: &Dataset, dir: &Path, text: bool) {
+    write_colmap(&colmap_model(data), dir, text);
+}
+
+fn write_colmap(model: &ColmapModel, dir: &Path, text: bool) {
+    let sparse = dir.join("sparse/0");
+    std::fs::create_dir_all(&sparse).unwrap();
+    if text { write_text(model, &sparse).unwrap() } else { write_binary(model, &sparse).unwrap() }
+}
+
+/// The generated scene's cameras as a COLMAP model, with one 3D point.
+fn colmap_model(data: &Dataset) -> ColmapModel {
     let views: Vec<_> = data.test.iter().chain(&data.train).collect();
     let cam = views[0].camera;
     let mut model = ColmapModel {
@@ -75,9 +87,7 @@ fn as_colmap(data: &Dataset, dir: &Path, text: bool) {
         });
     }
     model.points.push(ColmapPoint { id: 1, xyz: [0.0, 0.1, 0.2], rgb: [10, 20, 30], error: 0.5, track: Vec::new() });
-    let sparse = dir.join("sparse/0");
-    std::fs::create_dir_all(&sparse).unwrap();
-    if text { write_text(&model, &sparse).unwrap() } else { write_binary(&model, &sparse).unwrap() }
+    model
 }
 
 #[test]
@@ -204,4 +214,124 @@ fn broken_inputs_are_clear_errors() {
     )
     .unwrap();
     assert_load_error(&dir, "points3d.ply");
+}
+
+#[test]
+fn hostile_colmap_values_are_errors_naming_file_and_record() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("scene");
+    let data = generated(&scene);
+    type Edit = fn(&mut ColmapModel);
+    let cases: [(&str, Edit, &str); 6] = [
+        (
+            "nan_point",
+            |m| m.points[0].xyz[1] = f64::NAN,
+            "points3D.{ext}: point 1 has position [0.0, NaN, 0.2], which is not finite (in f32)",
+        ),
+        ("f32_overflow_point", |m| m.points[0].xyz[0] = 1e39, "points3D.{ext}: point 1 has position [1e39,"),
+        (
+            "nan_distortion",
+            |m| {
+                m.cameras[0].model = CameraModel::SimpleRadial;
+                m.cameras[0].params = vec![m.cameras[0].params[0], 24.0, 18.0, f64::NAN];
+            },
+            "cameras.{ext}: camera 1: distortion Radial { k1: NaN, k2: 0.0 } has a non-finite coefficient",
+        ),
+        (
+            // f = 40 px on 48x36 images: corners at a normalized radius of 0.75; k1 = -1 folds
+            // the image over from a radius of 0.58 on.
+            "folding_distortion",
+            |m| {
+                m.cameras[0].model = CameraModel::SimpleRadial;
+                m.cameras[0].params = vec![40.0, 24.0, 18.0, -1.0];
+            },
+            "cameras.{ext}: camera 1: distortion Radial { k1: -1.0, k2: 0.0 } folds the image over",
+        ),
+        ("zero_focal", |m| m.cameras[0].params[0] = 0.0, "cameras.{ext}: camera 1: camera rejected (params [0.0,"),
+        (
+            "f32_overflow_translation",
+            |m| m.images[3].tvec[2] = -1e300, // view_002: the model lists the test views first
+            "images.{ext}: image `view_002.png`: translation [",
+        ),
+    ];
+    for (name, edit, expected) in cases {
+        for text in [false, true] {
+            let dir = tmp.path().join(format!("{name}_{text}"));
+            std::fs::create_dir_all(&dir).unwrap();
+            std::os::unix::fs::symlink(scene.join("images"), dir.join("images")).unwrap();
+            let mut model = colmap_model(&data);
+            edit(&mut model);
+            write_colmap(&model, &dir, text);
+            assert_load_error(&dir, &expected.replace("{ext}", if text { "txt" } else { "bin" }));
+        }
+    }
+}
+
+#[test]
+fn hostile_transforms_values_are_errors_naming_the_field() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fresh = |name: &str| {
+        let dir = tmp.path().join(name);
+        generate(&dir, &small()).unwrap();
+        dir
+    };
+    type Edit = fn(&mut serde_json::Value);
+    let cases: [(&str, Edit, &str); 5] = [
+        (
+            // Degrees instead of radians give a plausible focal length of the wrong size.
+            "angle_in_degrees",
+            |j| {
+                j.as_object_mut().unwrap().remove("fl_x");
+                j["camera_angle_x"] = serde_json::json!(40.0);
+            },
+            "frame 0 (`images/view_000.png`): `camera_angle_x` = 40 is not a field of view in radians",
+        ),
+        (
+            "flat_angle_y",
+            |j| {
+                j.as_object_mut().unwrap().remove("fl_x");
+                j["camera_angle_x"] = serde_json::json!(1.0);
+                j["camera_angle_y"] = serde_json::json!(0.0);
+            },
+            "`camera_angle_y` = 0 is not a field of view in radians",
+        ),
+        ("fractional_size", |j| j["w"] = serde_json::json!(48.5), "intrinsic image size 48.5x36 is not whole pixels"),
+        (
+            "folding_distortion",
+            |j| j["k1"] = serde_json::json!(-1.0),
+            "distortion Opencv { k1: -1.0, k2: 0.0, p1: 0.0, p2: 0.0 } folds the image over",
+        ),
+        (
+            // Cameras 6.4e38 apart: each pose is fine, the scene's extent overflows f32.
+            "far_apart_cameras",
+            |j| {
+                j["frames"][1]["transform_matrix"][0][3] = serde_json::json!(3.2e38);
+                j["frames"][2]["transform_matrix"][0][3] = serde_json::json!(-3.2e38);
+            },
+            "the training cameras are too far apart to normalize the scene in 32-bit floats",
+        ),
+    ];
+    for (name, edit, expected) in cases {
+        let dir = fresh(name);
+        edit_transforms(&dir, edit);
+        assert_load_error(&dir, expected);
+    }
+}
+
+#[test]
+fn llff_sizes_must_be_whole_pixels() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("scene");
+    generate(&scene, &small()).unwrap();
+    let dir = tmp.path().join("llff");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::os::unix::fs::symlink(scene.join("images"), dir.join("images")).unwrap();
+    // Identity poses, h = 36.5: read as 36 before, silently.
+    let mut row = [0.0; 17];
+    (row[1], row[5], row[12]) = (1.0, -1.0, 1.0); // (down, right, back) columns
+    (row[4], row[9], row[14]) = (36.5, 48.0, 40.0);
+    let data = row.iter().copied().cycle().take(17 * small().views).collect();
+    let npy = NpyArray { shape: vec![small().views, 17], data };
+    std::fs::write(dir.join("poses_bounds.npy"), encode_npy(&npy)).unwrap();
+    assert_load_error(&dir, "poses_bounds.npy: pose 0: image size 48x36.5 is not whole pixels in 1..=65535");
 }

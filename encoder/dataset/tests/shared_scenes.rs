@@ -1,18 +1,33 @@
-//! Loading the real captures in `../shared/scenes` (skipped, saying so, when that folder is not
-//! beside the checkout).
+//! Loading the real captures in `../shared/scenes` (see `shared_data` for when an absent scene
+//! skips and when it fails).
 
-use std::path::{Path, PathBuf};
+#[path = "../../../decoder/tests/shared_data/mod.rs"]
+mod shared_data;
 
+use std::path::PathBuf;
+
+use pwgs_dataset::colmap::{CameraModel, find_model_dir, read_model};
+use pwgs_dataset::undistort::Distortion;
 use pwgs_dataset::{LoadOptions, load_cameras, load_scene};
 
 fn shared_scene(name: &str) -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes").join(name);
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!("skipped: {} not found (the shared scenes are not beside the checkout)", dir.display());
-        None
-    }
+    shared_data::path(&format!("scenes/{name}"))
+}
+
+#[test]
+fn reads_the_fern_model() {
+    let Some(scene) = shared_scene("fern") else { return };
+    let dir = find_model_dir(&scene).expect("fern has a COLMAP model");
+    let model = read_model(&dir).unwrap();
+    assert_eq!(model.cameras.len(), 1);
+    let camera = &model.cameras[0];
+    assert_eq!((camera.model, camera.width, camera.height), (CameraModel::SimpleRadial, 4032, 3024));
+    assert!((camera.params[0] - 3260.5).abs() < 1.0, "{camera:?}");
+    assert!(matches!(camera.distortion(&dir).unwrap(), Distortion::Radial { .. }));
+    assert_eq!(model.images.len(), 20);
+    assert!(model.images.iter().all(|image| image.name.starts_with("IMG_") && image.camera_id == camera.id));
+    assert_eq!(model.points.len(), 10_091);
+    assert!(model.points.iter().all(|point| point.xyz.iter().all(|v| v.is_finite())));
 }
 
 #[test]
