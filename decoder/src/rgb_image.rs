@@ -60,7 +60,9 @@ impl RgbImage {
     pub fn load(path: &Path, background: [f32; 3]) -> Result<Self, ImageError> {
         let name = path.display().to_string();
         let reader = image::ImageReader::open(path).map_err(|source| ImageError::Io { path: name.clone(), source })?;
-        let reader = reader.with_guessed_format().map_err(|source| ImageError::Io { path: name.clone(), source })?;
+        let mut reader =
+            reader.with_guessed_format().map_err(|source| ImageError::Io { path: name.clone(), source })?;
+        reader.limits(decode_limits());
         let decoded = reader.decode().map_err(|source| ImageError::Decode { path: name, source })?;
         Ok(Self::from_rgba8(&decoded.to_rgba8(), background))
     }
@@ -79,5 +81,34 @@ impl RgbImage {
             .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Png)
             .map_err(|source| ImageError::Encode { path: name.clone(), source })?;
         crate::atomic_file::write_atomically(path, &bytes).map_err(|source| ImageError::Io { path: name, source })
+    }
+}
+
+/// What an image file may make [`RgbImage::load`] allocate, whatever its header claims: sides
+/// up to a camera's [`MAX_SIDE`](crate::camera::MAX_SIDE) and 256 MiB of decoded pixels (64
+/// megapixels of RGBA, four times a 16-megapixel photo), refused before decoding.
+fn decode_limits() -> image::Limits {
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(crate::camera::MAX_SIDE);
+    limits.max_image_height = Some(crate::camera::MAX_SIDE);
+    limits.max_alloc = Some(256 << 20);
+    limits
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn images_beyond_the_limits_are_refused_before_decoding() {
+        let tmp = tempfile::tempdir().unwrap();
+        let wide = tmp.path().join("wide.png");
+        image::RgbImage::new(70_000, 1).save(&wide).unwrap();
+        let err = RgbImage::load(&wide, [0.0; 3]).unwrap_err().to_string();
+        assert!(err.contains("wide.png") && err.contains("limit"), "{err}");
+        let small = tmp.path().join("small.png");
+        image::RgbImage::from_pixel(3, 2, image::Rgb([255, 0, 0])).save(&small).unwrap();
+        let loaded = RgbImage::load(&small, [0.0; 3]).unwrap();
+        assert_eq!((loaded.width, loaded.height, loaded.data[0]), (3, 2, 1.0));
     }
 }
