@@ -146,6 +146,26 @@ impl<'a> Container<'a> {
     }
 }
 
+/// Rewrites the CRC-32C of every complete section of a stream-shaped input (SPEC.md 2.1: a CRC
+/// covers its section's tag, length and payload, and the first section's also covers the
+/// magic and the version). For tools that edit or mutate streams (fuzzing, hand-made test
+/// streams): without it a mutated stream fails its CRC check and never reaches the payload
+/// parsers. Sections are walked by their declared lengths; the walk stops at the first one that
+/// runs past the end, which is left as it is.
+pub fn reseal(bytes: &mut [u8]) {
+    let preamble = MAGIC.len() + 4;
+    let mut at = preamble;
+    while let Some(len) = bytes.get(at + 4..at + 8) {
+        let len = u32::from_le_bytes([len[0], len[1], len[2], len[3]]) as usize;
+        let crc_at = at + 8 + len;
+        let Some(crc_field) = crc_at.checked_add(4).filter(|&end| end <= bytes.len()) else { return };
+        let covered_from = if at == preamble { 0 } else { at };
+        let crc = crc32c::crc32c(&bytes[covered_from..crc_at]);
+        bytes[crc_at..crc_field].copy_from_slice(&crc.to_le_bytes());
+        at = crc_field;
+    }
+}
+
 /// `len` bytes at `at`, or a truncation error naming what was being read.
 fn take<'a>(bytes: &'a [u8], at: usize, len: usize, what: &'static str) -> Result<&'a [u8], StreamError> {
     at.checked_add(len).and_then(|end| bytes.get(at..end)).ok_or(StreamError::Truncated {
@@ -193,6 +213,26 @@ fn push_section(out: &mut Vec<u8>, tag: Tag, payload: &[u8], crc_from: usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reseal_restores_every_crc_including_the_first_sections_wider_one() {
+        let preamble = MAGIC.len() + 4;
+        let original = write_container(&[(Tag::HEAD, vec![1, 2, 3]), (Tag(*b"POSN"), vec![7; 20])]);
+        let mut mutated = original.clone();
+        mutated[preamble + 8] = 9; // a HEAD payload byte
+        assert!(Container::parse(&mutated).is_err());
+        reseal(&mut mutated);
+        let container = Container::parse(&mutated).expect("resealed stream parses");
+        assert_eq!(container.sections[0].payload, [9, 2, 3]);
+        let head_end = preamble + 8 + 3 + 4;
+        assert_ne!(mutated[head_end - 4..head_end], original[head_end - 4..head_end], "HEAD's CRC is rewritten");
+        assert_eq!(mutated[head_end..], original[head_end..], "the other sections' CRCs still hold");
+        // A section running past the end is left alone.
+        let mut truncated = original[..original.len() - 2].to_vec();
+        let before = truncated.clone();
+        reseal(&mut truncated);
+        assert_eq!(truncated, before);
+    }
 
     fn sample() -> Vec<u8> {
         write_container(&[(Tag::HEAD, vec![1, 2, 3]), (Tag(*b"POSN"), vec![9; 40]), (Tag(*b"note"), b"hi".to_vec())])

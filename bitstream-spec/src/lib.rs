@@ -8,7 +8,7 @@
 mod container;
 mod fields;
 
-pub use container::{Container, SECTION_OVERHEAD, Section, StreamError, Tag, write_container};
+pub use container::{Container, SECTION_OVERHEAD, Section, StreamError, Tag, reseal, write_container};
 pub use fields::{FieldError, FieldReader, FieldWriter};
 
 /// The first eight bytes of every stream. The high first byte catches 7-bit transports, the
