@@ -4,6 +4,7 @@
 # target the executions, the wall seconds and the findings (files libFuzzer wrote to
 # fuzz/artifacts/<target>/). libFuzzer stops a target at its first finding.
 #
+# Exits 1 when any target had a finding.
 # Usage: fuzz/campaign.sh [--smoke] [--no-seed] [--no-build] [TARGET...]
 #   --smoke     about 20 s per target (-max_total_time) instead of the execution counts
 #   --no-seed   keep fuzz/corpus as it is (e.g. to go on from a previous campaign's corpus)
@@ -54,6 +55,7 @@ flags_of() {
 }
 
 summary=()
+total_findings=0
 for target in "${targets[@]}"; do
     mkdir -p "artifacts/$target" "corpus/$target"
     if $smoke; then
@@ -79,6 +81,7 @@ for target in "${targets[@]}"; do
     [[ -n $executions ]] || executions=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')
     after=$(ls "artifacts/$target" | grep -cE '^(crash|timeout|oom|leak|slow-unit)-' || true)
     findings=$((after - before))
+    total_findings=$((total_findings + findings))
     line=$(printf '%-12s %10s execs %8.1f s %8.0f exec/s  findings: %d  (exit %d, log %s)' \
         "$target" "${executions:-0}" "$seconds" "$(echo "${executions:-0} / $seconds" | bc -l)" "$findings" "$status" "$log")
     echo "$line"
@@ -92,3 +95,5 @@ done
 echo
 echo "campaign summary:"
 printf '%s\n' "${summary[@]}"
+# A finding fails the campaign, so that scripts (and CI) can stop on it.
+[[ $total_findings -eq 0 ]] || { echo "$total_findings finding(s): see fuzz/artifacts/" >&2; exit 1; }
