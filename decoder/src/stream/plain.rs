@@ -153,20 +153,21 @@ impl PlainGaussians {
     pub(super) fn read_sections(container: &Container, count: usize, sh_degree: u32) -> Result<Self, DecodeError> {
         let payload = |tag: Tag| container.section(tag).map(|s| s.payload).ok_or(DecodeError::MissingSection(tag));
         let rest = (sh_coeff_count(sh_degree) - 1) * 3;
-        // (tag, steps, channels, value check) of every block, SHRS only when there are SH bands.
+        // (tag, steps, channels, value check) of every block; SHRS has no channels at degree 0.
         let any: ValueCheck = |_, _| Ok(());
-        let blocks: Vec<(Tag, usize, usize, ValueCheck)> = [
+        let blocks: [(Tag, usize, usize, ValueCheck); 5] = [
             (SCALES, 1, 3, any),
             (ROTATIONS, 1, 4, check_rotation_index),
             (OPACITIES, 1, 1, any),
             (COLORS, 1, 3, any),
             (SH_REST, sh_degree as usize, rest, any),
-        ]
-        .into_iter()
-        .filter(|&(_, _, channels, _)| channels > 0)
-        .collect();
+        ];
         let positions_payload = payload(POSITIONS)?;
-        let block_payloads = blocks.iter().map(|&(tag, ..)| payload(tag)).collect::<Result<Vec<_>, _>>()?;
+        // A block without channels has no section.
+        let block_payloads = blocks
+            .iter()
+            .map(|&(tag, _, channels, _)| if channels == 0 { Ok(None) } else { payload(tag).map(Some) })
+            .collect::<Result<Vec<_>, _>>()?;
         if rest == 0 && container.section(SH_REST).is_some() {
             return Err(DecodeError::invalid(SH_REST, "present, but the SH degree is 0 (the section must be absent)"));
         }
@@ -174,11 +175,14 @@ impl PlainGaussians {
         let decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
             .zip(block_payloads)
-            .map(|(&(tag, steps, channels, check), bytes)| read_block(tag, bytes, (steps, channels, check), count))
+            .map(|(&(tag, steps, channels, check), bytes)| match bytes {
+                Some(bytes) => read_block(tag, bytes, (steps, channels, check), count),
+                None => Ok((vec![], vec![])),
+            })
             .collect();
-        let mut decoded = decoded.into_iter();
-        let mut next = || decoded.next().unwrap_or(Ok((vec![], vec![])));
-        let (scales, rotations, opacities, colors, sh_rest) = (next(), next(), next(), next(), next());
+        let Ok([scales, rotations, opacities, colors, sh_rest]) = <[_; 5]>::try_from(decoded) else {
+            unreachable!("one result per block")
+        };
         let (scale_steps, scales) = scales?;
         let (rotation_steps, rotation_values) = rotations?;
         let (opacity_steps, opacity_logits) = opacities?;
