@@ -30,6 +30,18 @@ fn scal_with_first_escaped(b: &Bases, s: &mut Sections, first: i64) {
 }
 
 /// Coded chunks, the range decoder and frequency tables (SPEC.md section 5, decisions 1 to 4).
+/// A case whose stream has `table` as ROTN's third frequency table.
+fn add_rotn_table(
+    b: &Bases,
+    cases: &mut Cases,
+    (file, clause, error): (&str, &'static str, &str),
+    table: Vec<u8>,
+    what: &str,
+) {
+    let bytes = edit(&b.plain, |s| edit_block(s, ROTATIONS, |block| block.tables[2] = table));
+    cases.add(file, clause, error, &format!("ROTN's third table: {what}."), bytes);
+}
+
 pub(super) fn coding(b: &Bases, cases: &mut Cases) {
     let p = &b.plain;
     // Coded chunks and the range decoder: SPEC.md sections 5.1 and 5.2.
@@ -163,8 +175,7 @@ pub(super) fn coding(b: &Bases, cases: &mut Cases) {
         ),
     ];
     for (file, clause, table, error, what) in table_cases {
-        let bytes = edit(p, |s| edit_block(s, ROTATIONS, |b| b.tables[2] = table));
-        cases.add(file, clause, error, &format!("ROTN's third table: {what}."), bytes);
+        add_rotn_table(b, cases, (file, clause, error), table, &what);
     }
     cases.add(
         "escape-in-range",
@@ -242,8 +253,7 @@ pub(super) fn coding(b: &Bases, cases: &mut Cases) {
         ),
     ];
     for (file, clause, table, error, what) in more_tables {
-        let bytes = edit(p, |s| edit_block(s, ROTATIONS, |b| b.tables[2] = table));
-        cases.add(file, clause, error, &format!("ROTN's third table: {what}."), bytes);
+        add_rotn_table(b, cases, (file, clause, error), table, what);
     }
     cases.add(
         "table-frequencies-truncated",
