@@ -6,6 +6,7 @@ pub mod camera;
 pub mod camera_json;
 pub mod gaussians;
 pub mod ply;
+pub mod portable_math;
 pub mod random_scene;
 pub mod raster;
 pub mod rgb_image;

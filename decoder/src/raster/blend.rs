@@ -8,6 +8,7 @@
 use super::project::Splat;
 use super::tiles::TileBins;
 use super::{Cutoff, RenderOptions, TILE_SIZE};
+use crate::portable_math::exp_f32;
 
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 
@@ -29,7 +30,7 @@ pub struct AlphaSample {
 pub fn splat_alpha(s: &Splat, dx: f32, dy: f32, options: &RenderOptions) -> Option<AlphaSample> {
     let [l11, l21, l22] = s.cholesky;
     let (p, q) = (l11 * dx + l21 * dy, l22 * dy);
-    let falloff = (-0.5 * (p * p + q * q)).exp();
+    let falloff = exp_f32(-0.5 * (p * p + q * q));
     let raw = s.opacity * falloff;
     let alpha_min = options.projection.alpha_min as f32;
     if raw < alpha_min {

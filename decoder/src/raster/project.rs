@@ -12,6 +12,7 @@ use glam::{DMat3, DVec3};
 use super::sh;
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
+use crate::portable_math::{exp_f64, ln_f64};
 
 /// Constants of the projection, as gsplat and the original 3DGS use them.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -90,9 +91,9 @@ pub struct Splat {
 /// Numerically stable logistic function.
 pub fn sigmoid(x: f64) -> f64 {
     if x >= 0.0 {
-        1.0 / (1.0 + (-x).exp())
+        1.0 / (1.0 + exp_f64(-x))
     } else {
-        let e = x.exp();
+        let e = exp_f64(x);
         e / (1.0 + e)
     }
 }
@@ -159,7 +160,7 @@ pub fn project_detail(
     }
 
     let rotation = rotation_matrix(quaternion);
-    let scale = DVec3::new(log_scale[0].exp(), log_scale[1].exp(), log_scale[2].exp());
+    let scale = DVec3::new(exp_f64(log_scale[0]), exp_f64(log_scale[1]), exp_f64(log_scale[2]));
     let m = rotation * DMat3::from_diagonal(scale);
     let cov_cam = w2c * (m * m.transpose()) * w2c.transpose();
 
@@ -212,7 +213,7 @@ pub fn project(g: &Gaussians, i: usize, camera: &Camera, settings: &ProjectionSe
     // alpha = opacity * exp(-sigma) >= alpha_min  <=>  sigma <= ln(opacity / alpha_min): the
     // ellipse of Mahalanobis radius sqrt(2 ln(opacity / alpha_min)), whose bounding box has
     // half-sizes radius * sqrt(cov_xx) and radius * sqrt(cov_yy).
-    let radius = (2.0 * (d.opacity / settings.alpha_min).ln()).max(0.0).sqrt();
+    let radius = (2.0 * ln_f64(d.opacity / settings.alpha_min)).max(0.0).sqrt();
     let (ex, ey) = (radius * a.sqrt(), radius * c.sqrt());
     // Pixel i is covered when its center i + 0.5 lies within [mean - e, mean + e].
     let range = |center: f64, extent: f64, size: u32| -> Option<[u32; 2]> {
