@@ -2,8 +2,8 @@
 //! integers, IEEE-754 binary32 floats, and unsigned LEB128 varints (at most 5 bytes, no
 //! overlong encodings) with zig-zag for signed values.
 
-/// A field that could not be read: which section, which field, and the byte offset in the
-/// payload.
+/// A field that could not be read or holds a forbidden value: which section, which field, and
+/// the payload byte where that field starts.
 #[derive(Debug, thiserror::Error, PartialEq)]
 #[error("section '{section}', field `{field}` at payload byte {offset}: {problem}")]
 pub struct FieldError {
@@ -18,16 +18,19 @@ pub struct FieldReader<'a> {
     section: &'a str,
     bytes: &'a [u8],
     at: usize,
+    /// Where the field being read, or the last one read, starts: errors point there, also
+    /// those a caller raises after checking a value it read.
+    field_start: usize,
 }
 
 impl<'a> FieldReader<'a> {
     pub fn new(section: &'a str, bytes: &'a [u8]) -> Self {
-        Self { section, bytes, at: 0 }
+        Self { section, bytes, at: 0, field_start: 0 }
     }
 
-    /// An error at the current position.
+    /// An error in the field being read or the last one read (see `field_start`).
     pub fn error(&self, field: &'static str, problem: impl Into<String>) -> FieldError {
-        FieldError { section: self.section.to_string(), field, offset: self.at, problem: problem.into() }
+        FieldError { section: self.section.to_string(), field, offset: self.field_start, problem: problem.into() }
     }
 
     pub fn position(&self) -> usize {
@@ -40,6 +43,7 @@ impl<'a> FieldReader<'a> {
 
     /// The next `n` bytes.
     pub fn bytes(&mut self, field: &'static str, n: usize) -> Result<&'a [u8], FieldError> {
+        self.field_start = self.at;
         if n > self.remaining() {
             return Err(self.error(field, format!("needs {n} bytes, {} left", self.remaining())));
         }
@@ -50,6 +54,7 @@ impl<'a> FieldReader<'a> {
 
     /// Everything left in the payload.
     pub fn rest(&mut self) -> &'a [u8] {
+        self.field_start = self.at;
         let out = &self.bytes[self.at..];
         self.at = self.bytes.len();
         out
@@ -79,7 +84,7 @@ impl<'a> FieldReader<'a> {
     pub fn f32(&mut self, field: &'static str) -> Result<f32, FieldError> {
         let v = f32::from_le_bytes(self.array(field)?);
         if !v.is_finite() {
-            self.at -= 4;
+            self.at = self.field_start;
             return Err(self.error(field, format!("{v} is not finite")));
         }
         Ok(v)
@@ -90,7 +95,9 @@ impl<'a> FieldReader<'a> {
         let start = self.at;
         let mut value: u64 = 0;
         for i in 0..5 {
-            let byte = self.u8(field)?;
+            // A varint cut short is an error at its first byte, like any other field.
+            let byte = self.u8(field).map_err(|e| FieldError { offset: start, ..e })?;
+            self.field_start = start;
             value |= u64::from(byte & 0x7f) << (7 * i);
             if byte & 0x80 == 0 {
                 if i > 0 && byte == 0 {
@@ -116,6 +123,7 @@ impl<'a> FieldReader<'a> {
     /// Checks that the payload was consumed. A stream of a newer minor version may append
     /// fields a decoder does not know, so `allow_extension` skips them instead.
     pub fn finish(mut self, allow_extension: bool) -> Result<(), FieldError> {
+        self.field_start = self.at;
         if self.remaining() > 0 && !allow_extension {
             return Err(self.error("end of section", format!("{} unexpected trailing bytes", self.remaining())));
         }
@@ -212,6 +220,34 @@ mod tests {
         let nan = f32::NAN.to_le_bytes();
         let err = FieldReader::new("TEST", &nan).f32("step").unwrap_err();
         assert!(err.to_string().contains("`step`") && err.to_string().contains("not finite"), "{err}");
+    }
+
+    /// Every error points at the first byte of its field: one cut short, one holding a bad
+    /// value, and one whose value the caller refuses after reading it.
+    #[test]
+    fn errors_point_at_the_start_of_their_field() {
+        let offset = |bytes: &[u8], read: &dyn Fn(&mut FieldReader) -> Result<(), FieldError>| {
+            let mut r = FieldReader::new("TEST", bytes);
+            read(&mut r).unwrap_err().offset
+        };
+        // Two bytes of u16, then a varint cut short in its second byte.
+        assert_eq!(offset(&[1, 0, 0x80], &|r| r.u16("a").and(r.varint("b")).map(drop)), 2);
+        // A u8, then a NaN.
+        let mut nan = vec![7];
+        nan.extend(f32::NAN.to_le_bytes());
+        assert_eq!(offset(&nan, &|r| r.u8("a").and(r.f32("b")).map(drop)), 1);
+        // A caller's check of a two-byte varint after a u8.
+        let check = |r: &mut FieldReader| {
+            r.u8("a")?;
+            let v = r.varint("b")?;
+            if v > 10 { Err(r.error("b", "too large")) } else { Ok(()) }
+        };
+        assert_eq!(offset(&[0, 0x80, 0x01], &check), 1);
+        // Trailing bytes are reported where they begin.
+        assert_eq!(FieldReader::new("TEST", &[1, 2]).finish(false).unwrap_err().offset, 0);
+        let mut r = FieldReader::new("TEST", &[1, 2, 3]);
+        r.u8("a").unwrap();
+        assert_eq!(r.finish(false).unwrap_err().offset, 1);
     }
 
     #[test]
