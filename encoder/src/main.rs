@@ -17,6 +17,7 @@ use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 use pwgs_encoder::session::{ImportJob, Orbit, SceneJob, StreamOptions, encode_scene, import_ply};
+use pwgs_encoder::train::wrapper_stage::DEFAULT_CROPS_PER_VIEW;
 use pwgs_encoder::train::{TrainConfig, WdFeatures, WrapperTraining};
 
 #[derive(Parser)]
@@ -158,10 +159,16 @@ struct WrapperArgs {
     /// and store it in the stream.
     #[arg(long)]
     wrapper: bool,
-    /// Fraction of --iters after which stage 2 begins (the paper: 0.5; 0 = stage 2 only, e.g.
-    /// on a model from --init-ply).
-    #[arg(long, default_value_t = 0.5, requires = "wrapper", value_parser = parse_fraction)]
-    wrapper_split: f64,
+    /// Stage 2's length in WD steps (one crop each) per training view; it follows the --iters
+    /// iterations of stage 1, so that every view is seen as often whatever the scene's size
+    /// (--iters 0: stage 2 only, e.g. on a model from --init-ply).
+    #[arg(long, default_value_t = DEFAULT_CROPS_PER_VIEW, requires = "wrapper",
+          value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    wrapper_crops_per_view: u32,
+    /// Memory for cached ground-truth WD features, in MiB (a 128-pixel crop takes about 11 MB;
+    /// beyond this budget they are recomputed at each use).
+    #[arg(long, default_value_t = 2048, requires = "wrapper")]
+    wd_cache_mib: usize,
     /// Hidden channels of f.
     #[arg(long, default_value_t = 16, requires = "wrapper",
           value_parser = clap::value_parser!(u8).range(1..=MAX_WIDTH as i64))]
@@ -223,13 +230,6 @@ fn parse_weight(s: &str) -> Result<f32, String> {
     }
 }
 
-fn parse_fraction(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
-        _ => Err(format!("`{s}` is not a fraction between 0 and 1")),
-    }
-}
-
 impl WrapperArgs {
     /// Stage 2's settings for a run of `iterations`, or `None` without --wrapper.
     fn training(&self, iterations: u32, seed: u64) -> Result<Option<WrapperTraining>> {
@@ -259,7 +259,9 @@ impl WrapperArgs {
                 plucker: !self.no_plucker,
                 seed: self.wrapper_seed.unwrap_or_else(|| SplitMix64(seed ^ 0x5752_4150).next_u64()),
             },
-            start: (iterations as f64 * self.wrapper_split).round() as u32,
+            start: iterations,
+            crops_per_view: self.wrapper_crops_per_view,
+            cache_bytes: self.wd_cache_mib.saturating_mul(1 << 20),
             log2_sigma,
             crop: self.wd_crop,
             learning_rate: self.wrapper_lr,

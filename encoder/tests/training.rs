@@ -114,6 +114,8 @@ fn the_stage_two_pixel_term_adds_the_base_objective() {
             learning_rate: 0.01,
             features: WdFeatures::Pixels,
             pixel_weight,
+            crops_per_view: 1,
+            cache_bytes: usize::MAX,
         });
         let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();
         trainer.step().unwrap().loss

@@ -42,8 +42,10 @@ fn decoder_shows_what_the_encoder_evaluated() {
     success(pwenc(&[
         &dir("scene"),
         "--iters",
-        "40",
+        "20",
         "--wrapper",
+        "--wrapper-crops-per-view",
+        "3",
         "--wd-features",
         "pixels",
         "--wd-crop",
@@ -56,6 +58,10 @@ fn decoder_shows_what_the_encoder_evaluated() {
         &dir("report.json"),
     ]));
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir("report.json")).unwrap()).unwrap();
+    // Stage 2 follows the 20 iterations of stage 1, 3 steps per training view.
+    let views = report["train_views"].as_u64().unwrap();
+    assert!(views >= 7, "{views} training views");
+    assert_eq!(report["training"]["iterations"].as_u64().unwrap(), 20 + 3 * views);
     let wrapper = &report["stream"]["wrapper"];
     assert_eq!(wrapper["width"], 16);
     assert_eq!(wrapper["parameters"], 17 * 16 + 16 + 48 + 3 + 2 * 84);
@@ -86,7 +92,8 @@ fn ablations_and_bad_wrapper_options() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
     success(pwenc(&["generate-scene", &dir("scene"), "--width", "64", "--height", "64", "--views", "5"]));
-    let common = [dir("scene"), "--iters".into(), "4".into(), "--wrapper".into()];
+    let common =
+        [dir("scene"), "--iters".into(), "4".into(), "--wrapper".into(), "--wrapper-crops-per-view".into(), "1".into()];
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let out = dir("a.pwb");
     args.extend(["--wd-features", "pixels", "--no-noise", "--wrapper-width", "5", "--wd-crop", "64", "-o", &out]);
@@ -116,7 +123,7 @@ fn ablations_and_bad_wrapper_options() {
         fails(&args, needle);
     };
     bad(&["--wd-features", "pixels", "--wd-crop", "20"], "--wd-crop");
-    bad(&["--wd-features", "pixels", "--wrapper-split", "1.5"], "fraction");
+    bad(&["--wd-features", "pixels", "--wrapper-crops-per-view", "0"], "--wrapper-crops-per-view");
     bad(&["--wd-features", "pixels", "--wd-log2-sigma", "9"], "log2 sigma");
     bad(&["--wd-features", "pixels", "--wd-log2-sigma-map", "/nonexistent.png"], "nonexistent");
     bad(&["--weights", "/nonexistent"], "VGG16");

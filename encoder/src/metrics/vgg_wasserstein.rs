@@ -32,6 +32,13 @@ pub struct WdTarget {
     size: [usize; 4],
 }
 
+impl WdTarget {
+    /// Memory the cached features take (f32 values).
+    pub fn bytes(&self) -> usize {
+        self.features.iter().map(|f| f.dims().iter().product::<usize>() * 4).sum()
+    }
+}
+
 /// WD with VGG16 features on one device.
 pub struct VggWasserstein {
     /// `None`: the cheap variant that compares the normalized image's 3 scales only.

@@ -79,6 +79,15 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     };
     let mut config = job.config.clone();
     config.initial_sh_degree = initial.sh_degree;
+    config.schedule_stage_two(data.train.len());
+    if let Some(w) = &config.wrapper {
+        println!(
+            "stage 1: {} iterations; stage 2: {} steps ({} crops per training view)",
+            w.start,
+            config.iterations - w.start,
+            w.crops_per_view
+        );
+    }
     let background = config.background;
     let iterations = config.iterations;
     let mut trainer = Trainer::new(config, &data, &initial, Device::flex())?;
