@@ -1,7 +1,8 @@
 //! Evaluation on a dataset's test views: render each, compare with the ground truth (PSNR, and
-//! SSIM in the 3DGS zero-padded convention that published 3DGS numbers use), optionally save
-//! the renders.
+//! SSIM in the 3DGS zero-padded convention that published 3DGS numbers use, and any metrics of
+//! a [`MetricSuite`]), optionally save the renders.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Instant;
 
@@ -17,6 +18,7 @@ use serde::Serialize;
 use crate::metrics::image_tensor::image_tensor;
 use crate::metrics::psnr::psnr;
 use crate::metrics::ssim::{SsimConvention, ssim};
+use crate::metrics::suite::MetricSuite;
 
 /// Quality of one rendered test view.
 #[derive(Debug, Clone, Serialize)]
@@ -26,23 +28,36 @@ pub struct ViewScore {
     /// 3DGS convention (zero-padded windows).
     pub ssim: f64,
     pub render_seconds: f64,
+    /// The suite's metrics by name (LPIPS, DISTS, WD, ...), when one was given.
+    #[serde(flatten)]
+    pub metrics: BTreeMap<String, f64>,
 }
 
 /// Mean scores over views.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, Serialize)]
 pub struct MeanScore {
     pub psnr: f64,
     pub ssim: f64,
+    #[serde(flatten)]
+    pub metrics: BTreeMap<String, f64>,
 }
 
 impl MeanScore {
     pub fn of(views: &[ViewScore]) -> Self {
         let n = views.len().max(1) as f64;
+        let mean = |value: &dyn Fn(&ViewScore) -> f64| views.iter().map(value).sum::<f64>() / n;
+        let names = views.first().map(|v| v.metrics.keys().cloned().collect::<Vec<_>>()).unwrap_or_default();
         Self {
-            psnr: views.iter().map(|v| v.psnr).sum::<f64>() / n,
-            ssim: views.iter().map(|v| v.ssim).sum::<f64>() / n,
+            psnr: mean(&|v| v.psnr),
+            ssim: mean(&|v| v.ssim),
+            metrics: names.into_iter().map(|k| (k.clone(), mean(&|v| v.metrics[&k]))).collect(),
         }
     }
+}
+
+/// A suite's scores as `  NAME value` pairs for a log line (empty without a suite).
+pub fn describe(metrics: &BTreeMap<String, f64>) -> String {
+    metrics.iter().map(|(k, v)| format!("  {} {v:.4}", k.to_uppercase())).collect()
 }
 
 /// SSIM of two images, 3DGS convention, on the CPU backend.
@@ -54,13 +69,14 @@ pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
 
 /// Renders every test view as a decoder shows it (through the wrapper when given), optionally
 /// saving `<out>/<name>.png` and the ground truth as loaded (undistorted, downscaled) as
-/// `<out>/gt/<name>.png` for `pweval`, and scores it with PSNR and SSIM.
+/// `<out>/gt/<name>.png` for `pweval`, and scores it with PSNR, SSIM and `suite`'s metrics.
 pub fn evaluate(
     g: &Gaussians,
     wrapper: Option<WrapperView>,
     data: &Dataset,
     options: &RenderOptions,
     out: Option<&Path>,
+    suite: Option<&MetricSuite>,
 ) -> Result<Vec<ViewScore>> {
     if let Some(dir) = out {
         let gt = dir.join("gt");
@@ -83,6 +99,7 @@ pub fn evaluate(
                 psnr: psnr(&image, &view.image),
                 ssim: ssim_3dgs(&image, &view.image),
                 render_seconds,
+                metrics: suite.map(|s| s.score_named(&image, &view.image)).transpose()?.unwrap_or_default(),
             })
         })
         .collect()

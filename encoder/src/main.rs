@@ -12,7 +12,9 @@ use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::wrap::MAX_WIDTH;
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
+use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
+use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};
 use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
@@ -133,6 +135,17 @@ struct EncodeArgs {
     /// Render the test views into this folder and report PSNR and SSIM.
     #[arg(long, num_args = 0..=1, default_missing_value = "eval")]
     eval: Option<PathBuf>,
+    /// More metrics for --eval, per view and on average (e.g. lpips,dists,wd; their weights
+    /// are searched as for --wrapper).
+    #[arg(long, value_enum, value_delimiter = ',', requires = "eval")]
+    eval_metrics: Vec<Metric>,
+    /// log2 of WD's pooling width σ for --eval-metrics wd (0..=5).
+    #[arg(long, default_value_t = DEFAULT_WD_LOG2_SIGMA, requires = "eval")]
+    eval_wd_log2_sigma: f64,
+    /// A folder searched first for the VGG16, LPIPS and DISTS weights (then $PWGS_WEIGHTS_DIR
+    /// and the cache).
+    #[arg(long)]
+    weights: Option<PathBuf>,
     /// Write scores, timings and the model size as JSON.
     #[arg(long)]
     report: Option<PathBuf>,
@@ -204,9 +217,6 @@ struct WrapperArgs {
     /// Features WD compares: VGG16 (the reference) or the image alone (cheap, no weights).
     #[arg(long, value_enum, default_value = "vgg", requires = "wrapper")]
     wd_features: FeatureKind,
-    /// A folder searched first for the VGG16 weights (then $PWGS_WEIGHTS_DIR and the cache).
-    #[arg(long, requires = "wrapper")]
-    weights: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -232,7 +242,7 @@ fn parse_weight(s: &str) -> Result<f32, String> {
 
 impl WrapperArgs {
     /// Stage 2's settings for a run of `iterations`, or `None` without --wrapper.
-    fn training(&self, iterations: u32, seed: u64) -> Result<Option<WrapperTraining>> {
+    fn training(&self, iterations: u32, seed: u64, weights: Vec<PathBuf>) -> Result<Option<WrapperTraining>> {
         if !self.wrapper {
             return Ok(None);
         }
@@ -249,7 +259,7 @@ impl WrapperArgs {
         };
         log2_sigma.validate().map_err(|e| anyhow::anyhow!("WD log2 sigma: {e}"))?;
         let features = match self.wd_features {
-            FeatureKind::Vgg => WdFeatures::Vgg(self.weights.iter().cloned().chain(default_dirs()).collect()),
+            FeatureKind::Vgg => WdFeatures::Vgg(weights),
             FeatureKind::Pixels => WdFeatures::Pixels,
         };
         Ok(Some(WrapperTraining {
@@ -321,6 +331,11 @@ impl EncodeArgs {
         self.output.clone().map(|path| StreamOptions { path, quality: self.quality, target_bytes: self.target_bytes })
     }
 
+    /// Where weight files are searched: --weights, then the defaults.
+    fn weight_dirs(&self) -> Vec<PathBuf> {
+        self.weights.iter().cloned().chain(default_dirs()).collect()
+    }
+
     /// `--from-ply`: the import job.
     fn import_job(&self, ply: &Path) -> Result<ImportJob> {
         Ok(ImportJob {
@@ -340,7 +355,14 @@ impl EncodeArgs {
     /// Training on a scene: the training settings from the options.
     fn scene_job(&self, scene: &Path) -> Result<SceneJob> {
         let mut config = TrainConfig::for_iterations(self.iters);
-        config.wrapper = self.wrapper.training(self.iters, self.seed)?;
+        config.wrapper = self.wrapper.training(self.iters, self.seed, self.weight_dirs())?;
+        if let Some(m) = self.eval_metrics.iter().find(|m| matches!(m, Metric::Psnr | Metric::Ssim | Metric::Ssim3dgs))
+        {
+            bail!(
+                "--eval-metrics {}: PSNR and SSIM (3DGS convention) are always reported; it takes lpips, dists and wd",
+                m.name()
+            );
+        }
         if let Some(until) = self.densify_until {
             config.densify_until = until;
         }
@@ -361,6 +383,12 @@ impl EncodeArgs {
             stream: self.stream(),
             export_ply: self.export_ply.clone(),
             eval: self.eval.clone(),
+            eval_metrics: self.eval_metrics.clone(),
+            metric_settings: SuiteSettings {
+                weights: self.weight_dirs(),
+                wd_log2_sigma: self.eval_wd_log2_sigma,
+                lpips_input: LpipsInput::Official,
+            },
             report: self.report.clone(),
         })
     }

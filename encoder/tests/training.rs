@@ -17,7 +17,7 @@ fn small_scene(dir: &std::path::Path) -> Dataset {
 }
 
 fn mean_psnr(g: &pwgs_decoder::gaussians::Gaussians, data: &Dataset) -> f64 {
-    MeanScore::of(&evaluate(g, None, data, &RenderOptions::default(), None).unwrap()).psnr
+    MeanScore::of(&evaluate(g, None, data, &RenderOptions::default(), None, None).unwrap()).psnr
 }
 
 /// The README's main job: the default generated scene, 600 iterations.

@@ -6,16 +6,10 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result, bail};
-use burn::tensor::Device;
-use clap::{Parser, ValueEnum};
+use clap::Parser;
 use pwgs_decoder::rgb_image::RgbImage;
-use pwgs_encoder::metrics::dists::Dists;
-use pwgs_encoder::metrics::image_tensor::image_tensor;
-use pwgs_encoder::metrics::lpips::{Lpips, LpipsInput};
-use pwgs_encoder::metrics::psnr::psnr;
-use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma};
-use pwgs_encoder::metrics::ssim::{SsimConvention, ssim};
-use pwgs_encoder::metrics::vgg_wasserstein::VggWasserstein;
+use pwgs_encoder::metrics::lpips::LpipsInput;
+use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, MetricSuite, SuiteSettings};
 use pwgs_encoder::metrics::weights::default_dirs;
 use serde_json::json;
 
@@ -30,7 +24,7 @@ struct Cli {
     #[arg(long, value_enum, value_delimiter = ',')]
     metric: Vec<Metric>,
     /// log2 of the WD pooling width σ, constant over the image (0..=5).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = DEFAULT_WD_LOG2_SIGMA)]
     log2_sigma: f64,
     /// LPIPS on [0, 1] input as 3DGS's metrics.py computes it, instead of the official [-1, 1].
     #[arg(long)]
@@ -41,32 +35,6 @@ struct Cli {
     /// Print JSON instead of a table.
     #[arg(long)]
     json: bool,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, ValueEnum)]
-enum Metric {
-    Psnr,
-    /// SSIM with valid windows (Wang et al., scikit-image).
-    Ssim,
-    /// SSIM with zero-padded windows over all pixels (3DGS).
-    #[value(name = "ssim-3dgs")]
-    Ssim3dgs,
-    Lpips,
-    Dists,
-    Wd,
-}
-
-impl Metric {
-    fn name(self) -> &'static str {
-        match self {
-            Metric::Psnr => "psnr",
-            Metric::Ssim => "ssim",
-            Metric::Ssim3dgs => "ssim-3dgs",
-            Metric::Lpips => "lpips",
-            Metric::Dists => "dists",
-            Metric::Wd => "wd",
-        }
-    }
 }
 
 const IMAGE_EXTENSIONS: [&str; 4] = ["png", "jpg", "jpeg", "bmp"];
@@ -113,65 +81,30 @@ fn pairs(a: &Path, b: &Path) -> Result<Vec<(String, PathBuf, PathBuf)>> {
     Ok(out)
 }
 
-/// The networks the chosen metrics need, loaded once.
-struct Networks {
-    lpips: Option<Lpips>,
-    dists: Option<Dists>,
-    wd: Option<VggWasserstein>,
-}
-
 fn main() -> ExitCode {
     pwgs_encoder::exit::report(run(Cli::parse()))
 }
 
 fn run(cli: Cli) -> Result<()> {
-    let mut metrics = if cli.metric.is_empty() {
+    let metrics = if cli.metric.is_empty() {
         vec![Metric::Psnr, Metric::Ssim, Metric::Ssim3dgs, Metric::Lpips, Metric::Dists]
     } else {
         cli.metric.clone()
     };
-    metrics.sort();
-    metrics.dedup();
-    let log2_sigma = Log2Sigma::Constant(cli.log2_sigma);
-    if let Err(e) = log2_sigma.validate() {
-        bail!("--log2-sigma: {e} (the WD pyramid has {LEVELS} levels)");
-    }
     let pairs = pairs(&cli.a, &cli.b)?;
-    let device = Device::flex();
-    let mut dirs: Vec<PathBuf> = cli.weights.iter().cloned().collect();
-    dirs.extend(default_dirs());
-    let networks = Networks {
-        lpips: metrics.contains(&Metric::Lpips).then(|| Lpips::load(&dirs, &device)).transpose()?,
-        dists: metrics.contains(&Metric::Dists).then(|| Dists::load(&dirs, &device)).transpose()?,
-        wd: metrics.contains(&Metric::Wd).then(|| VggWasserstein::load(&dirs, &device)).transpose()?,
+    let settings = SuiteSettings {
+        weights: cli.weights.iter().cloned().chain(default_dirs()).collect(),
+        wd_log2_sigma: cli.log2_sigma,
+        lpips_input: if cli.lpips_3dgs { LpipsInput::Unit } else { LpipsInput::Official },
     };
-    let lpips_input = if cli.lpips_3dgs { LpipsInput::Unit } else { LpipsInput::Official };
+    let suite = MetricSuite::load(&metrics, settings)?;
+    let metrics = suite.metrics();
 
     let mut rows: Vec<(String, Vec<f64>)> = Vec::new();
     for (name, path_a, path_b) in &pairs {
         let a = RgbImage::load(path_a, [0.0; 3])?;
         let b = RgbImage::load(path_b, [0.0; 3])?;
-        if (a.width, a.height) != (b.width, b.height) {
-            bail!("{name}: {}x{} vs {}x{}", a.width, a.height, b.width, b.height);
-        }
-        let (ta, tb) = (image_tensor(&a, &device), image_tensor(&b, &device));
-        let scalar = |t: burn::tensor::Tensor<1>| t.into_scalar::<f32>() as f64;
-        let values = metrics
-            .iter()
-            .map(|metric| match metric {
-                Metric::Psnr => psnr(&a, &b),
-                Metric::Ssim => scalar(ssim(ta.clone(), tb.clone(), SsimConvention::Valid)),
-                Metric::Ssim3dgs => scalar(ssim(ta.clone(), tb.clone(), SsimConvention::ZeroPadded)),
-                Metric::Lpips => {
-                    scalar(networks.lpips.as_ref().expect("loaded").distance(ta.clone(), tb.clone(), lpips_input))
-                }
-                Metric::Dists => scalar(networks.dists.as_ref().expect("loaded").distance(ta.clone(), tb.clone())),
-                Metric::Wd => {
-                    scalar(networks.wd.as_ref().expect("loaded").distortion_pair(ta.clone(), tb.clone(), &log2_sigma))
-                }
-            })
-            .collect();
-        rows.push((name.clone(), values));
+        rows.push((name.clone(), suite.score(&a, &b).with_context(|| name.clone())?));
     }
     let means: Vec<f64> =
         (0..metrics.len()).map(|k| rows.iter().map(|(_, v)| v[k]).sum::<f64>() / rows.len() as f64).collect();

@@ -10,6 +10,7 @@ pub mod pickle;
 pub mod psnr;
 pub mod sigma_map;
 pub mod ssim;
+pub mod suite;
 pub mod vgg16;
 pub mod vgg_wasserstein;
 pub mod wasserstein;

@@ -17,8 +17,9 @@ use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
 use crate::compress::StreamContext;
-use crate::evaluate::{MeanScore, ViewScore, evaluate};
+use crate::evaluate::{MeanScore, ViewScore, describe, evaluate};
 use crate::init::initial_gaussians;
+use crate::metrics::suite::{Metric, MetricSuite, SuiteSettings};
 use crate::synthesis::{QuantizationSample, choose_quantization};
 use crate::train::{TrainConfig, TrainSummary, Trainer, train};
 
@@ -35,6 +36,9 @@ pub struct SceneJob {
     pub export_ply: Option<PathBuf>,
     /// Render the test views here and score them.
     pub eval: Option<PathBuf>,
+    /// Metrics scored on the test views besides PSNR and SSIM (LPIPS, DISTS, WD, ...).
+    pub eval_metrics: Vec<Metric>,
+    pub metric_settings: SuiteSettings,
     pub report: Option<PathBuf>,
 }
 
@@ -59,6 +63,11 @@ pub struct Report {
 pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let files = job.stream.iter().map(|s| &s.path).chain(&job.report).chain(&job.export_ply);
     check_outputs(files, &job.eval)?;
+    // The metrics' networks load before training, so that missing weights stop the run early.
+    let suite = match (&job.eval, job.eval_metrics.is_empty()) {
+        (Some(_), false) => Some(MetricSuite::load(&job.eval_metrics, job.metric_settings.clone())?),
+        _ => None,
+    };
     let scene = &job.scene;
     let start = Instant::now();
     let data = load_scene(scene, &job.load).with_context(|| format!("cannot load the scene {}", scene.display()))?;
@@ -129,12 +138,25 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let wrapper_view = dequantized.as_ref().map(|weights| WrapperView { weights, frame });
     let (views, mean) = match &job.eval {
         Some(dir) => {
-            let views = evaluate(shown, wrapper_view, &data, &options, Some(dir))?;
+            let views = evaluate(shown, wrapper_view, &data, &options, Some(dir), suite.as_ref())?;
             for v in &views {
-                println!("{:<24} PSNR {:6.2} dB  SSIM {:.4}  render {:.3} s", v.name, v.psnr, v.ssim, v.render_seconds);
+                println!(
+                    "{:<24} PSNR {:6.2} dB  SSIM {:.4}{}  render {:.3} s",
+                    v.name,
+                    v.psnr,
+                    v.ssim,
+                    describe(&v.metrics),
+                    v.render_seconds
+                );
             }
             let mean = MeanScore::of(&views);
-            println!("mean over {} test views: PSNR {:.2} dB, SSIM {:.4}", views.len(), mean.psnr, mean.ssim);
+            println!(
+                "mean over {} test views: PSNR {:.2} dB, SSIM {:.4}{}",
+                views.len(),
+                mean.psnr,
+                mean.ssim,
+                describe(&mean.metrics)
+            );
             (views, Some(mean))
         }
         None => (Vec::new(), None),
