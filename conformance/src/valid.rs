@@ -8,10 +8,8 @@ use std::path::Path;
 
 use anyhow::{Context, Result, bail};
 use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::stream::{self, attribute_hash};
+use pwgs_decoder::stream;
 use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
-use pwgs_decoder::wrapper::render_shown;
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 use serde::Deserialize;
 use sha2::{Digest, Sha256};
@@ -70,22 +68,23 @@ pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
     if decoded.header.gaussian_count != expected.gaussians || decoded.header.sh_degree != expected.sh_degree {
         bail!("{} Gaussians of degree {}", decoded.header.gaussian_count, decoded.header.sh_degree);
     }
-    let hash = attribute_hash(&decoded.gaussians);
+    let scene = &decoded.scene;
+    let hash = scene.attribute_hash();
     if hash != expected.attribute_sha256 {
         bail!("decoded attributes hash to {hash}, expected {}", expected.attribute_sha256);
     }
-    if decoded.wrapper.is_some() != expected.wrapper {
-        bail!("wrapper present: {}, expected {}", decoded.wrapper.is_some(), expected.wrapper);
+    if decoded.scene.wrapper.is_some() != expected.wrapper {
+        bail!("wrapper present: {}, expected {}", decoded.scene.wrapper.is_some(), expected.wrapper);
     }
-    if let Some(weights) = &decoded.wrapper {
+    if let Some(weights) = &decoded.scene.wrapper {
         let hash = wrapper_sha256(weights);
         let pinned = expected.wrapper_sha256.as_ref().with_context(|| format!("no wrapper_sha256 pinned ({hash})"))?;
         if &hash != pinned {
             bail!("decoded wrapper parameters hash to {hash}, expected {pinned}");
         }
     }
-    let noise_seed = decoded.wrapper.as_ref().filter(|w| w.config.noise).map(|w| w.config.seed);
-    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
+    let noise_seed = decoded.scene.wrapper.as_ref().filter(|w| w.config.noise).map(|w| w.config.seed);
+    let options = scene.render_options();
     let mut checks = Vec::new();
     for r in &expected.renders {
         let camera = parse_camera(&std::fs::read_to_string(dir.join(&r.camera))?)?;
@@ -97,7 +96,7 @@ pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
                 bail!("{}: noise pyramid of seed {seed} hashes to {hash}, expected {pinned}", r.camera);
             }
         }
-        let ours = render_shown(&decoded.gaussians, decoded.wrapper_view(), &camera, &options).0.to_rgb8();
+        let ours = scene.render(&camera, &options, true).image.to_rgb8();
         let reference = image::open(dir.join(&r.image))?.to_rgb8();
         checks.push(compare_render(&r.image, &ours, &reference)?);
     }

@@ -10,5 +10,6 @@ pub mod portable_math;
 pub mod random_scene;
 pub mod raster;
 pub mod rgb_image;
+pub mod scene;
 pub mod stream;
 pub mod wrapper;

@@ -7,7 +7,7 @@ use pwgs_decoder::gaussians::sh_coeff_count;
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::header::{BaseKind, Header, MAX_GAUSSIANS};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
-use pwgs_decoder::stream::{self, DecodeError, attribute_hash};
+use pwgs_decoder::stream::{self, DecodeError};
 
 fn int(rng: &mut SplitMix64, spread: f32) -> i32 {
     // Roughly Laplacian around 0, with a rare large outlier that needs the escape.
@@ -87,8 +87,8 @@ fn every_degree_round_trips_exactly() {
         let decoded = stream::decode(&bytes).unwrap();
         assert_eq!(decoded.header, header_for(&content));
         assert_eq!(decoded.content, reordered(&content), "degree {degree}");
-        assert_eq!(decoded.gaussians, decoded.content.dequantize());
-        assert!(decoded.gaussians.is_consistent());
+        assert_eq!(decoded.scene.plain_gaussians().unwrap(), &decoded.content.dequantize());
+        assert!(decoded.scene.plain_gaussians().unwrap().is_consistent());
     }
 }
 
@@ -96,7 +96,7 @@ fn every_degree_round_trips_exactly() {
 fn empty_streams_round_trip() {
     let content = random_content(0, 1, 3);
     let decoded = stream::decode(&encode(&content)).unwrap();
-    assert!(decoded.gaussians.is_empty());
+    assert!(decoded.scene.plain_gaussians().unwrap().is_empty());
 }
 
 #[test]
@@ -106,7 +106,7 @@ fn decoding_does_not_depend_on_the_thread_count() {
         .iter()
         .map(|&threads| {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-            pool.install(|| attribute_hash(&stream::decode(&bytes).unwrap().gaussians))
+            pool.install(|| stream::decode(&bytes).unwrap().scene.attribute_hash())
         })
         .collect();
     assert!(hashes.windows(2).all(|w| w[0] == w[1]), "{hashes:?}");
@@ -224,8 +224,8 @@ fn mutated_streams_never_panic() {
         }
         let result = stream::decode(&b);
         if let Ok(d) = &result {
-            assert!(d.gaussians.is_consistent());
-            let g = &d.gaussians;
+            assert!(d.scene.plain_gaussians().unwrap().is_consistent());
+            let g = &d.scene.plain_gaussians().unwrap();
             let all = g.means.iter().flatten().chain(g.log_scales.iter().flatten()).chain(g.rotations.iter().flatten());
             assert!(all.chain(&g.opacity_logits).chain(&g.sh).all(|v| v.is_finite()), "non-finite decoded value");
             assert!(d.header.gaussian_count <= MAX_GAUSSIANS);
@@ -307,7 +307,10 @@ fn structural_errors_name_the_problem() {
             c.sections.iter().filter(|s| s.tag != Tag(*b"ZZZZ")).map(|s| (s.tag, s.payload.to_vec())).collect();
         pwgs_bitstream::write_container(&sections)
     };
-    assert_eq!(stream::decode(&skipped).unwrap().gaussians, stream::decode(&bytes).unwrap().gaussians);
+    assert_eq!(
+        stream::decode(&skipped).unwrap().scene.plain_gaussians().unwrap(),
+        stream::decode(&bytes).unwrap().scene.plain_gaussians().unwrap()
+    );
     let bad_step = with_payload(&bytes, Tag(*b"SCAL"), |p| p[..4].copy_from_slice(&(-1.0f32).to_le_bytes()));
     let err = stream::decode(&bad_step).unwrap_err().to_string();
     assert!(err.contains("SCAL") && err.contains("step"), "{err}");
@@ -346,7 +349,7 @@ fn chunks_must_hold_exactly_their_symbols() {
     }
     // With N = 0 every chunk must be empty.
     let empty = encode(&random_content(0, 1, 9));
-    assert_eq!(stream::decode(&empty).unwrap().gaussians.len(), 0);
+    assert_eq!(stream::decode(&empty).unwrap().scene.plain_gaussians().unwrap().len(), 0);
     for tag in ["POSN", "OPAC"] {
         let tag = Tag(tag.as_bytes().try_into().unwrap());
         let err = stream::decode(&with_payload(&empty, tag, |p| p.extend([1, 2, 3, 4]))).unwrap_err().to_string();

@@ -9,10 +9,8 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::tensor::Device;
 use pwgs_dataset::Dataset;
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::rgb_image::RgbImage;
-use pwgs_decoder::wrapper::{WrapperView, render_shown};
+use pwgs_decoder::scene::Scene;
 use serde::Serialize;
 
 use crate::metrics::image_tensor::image_tensor;
@@ -67,14 +65,13 @@ pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
     value.into_data().convert::<f64>().try_into_vec::<f64>().expect("scalar")[0]
 }
 
-/// Renders every test view as a decoder shows it (through the wrapper when given), optionally
-/// saving `<out>/<name>.png` and the ground truth as loaded (undistorted, downscaled) as
-/// `<out>/gt/<name>.png` for `pweval`, and scores it with PSNR, SSIM and `suite`'s metrics.
+/// Renders every test view as a decoder shows it (through the wrapper when the scene has one),
+/// optionally saving `<out>/<name>.png` and the ground truth as loaded (undistorted,
+/// downscaled) as `<out>/gt/<name>.png` for `pweval`, and scores it with PSNR, SSIM and
+/// `suite`'s metrics.
 pub fn evaluate(
-    g: &Gaussians,
-    wrapper: Option<WrapperView>,
+    scene: &Scene,
     data: &Dataset,
-    options: &RenderOptions,
     out: Option<&Path>,
     suite: Option<&MetricSuite>,
 ) -> Result<Vec<ViewScore>> {
@@ -86,7 +83,7 @@ pub fn evaluate(
         .iter()
         .map(|view| {
             let start = Instant::now();
-            let (image, _) = render_shown(g, wrapper, &view.camera, options);
+            let image = scene.render(&view.camera, &scene.render_options(), true).image;
             let render_seconds = start.elapsed().as_secs_f64();
             if let Some(dir) = out {
                 let stem =

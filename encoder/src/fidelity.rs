@@ -4,9 +4,9 @@
 
 use glam::Vec3;
 use pwgs_decoder::camera::{Camera, CameraError, Intrinsics};
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_decoder::scene::Scene;
 
 use crate::compress::StreamContext;
 
@@ -31,12 +31,12 @@ pub fn orbit_cameras(context: &StreamContext, up: Vec3, count: usize, size: u32)
     )
 }
 
-/// Renders of `g` from each camera, clamped to the displayable range.
-pub fn renders(g: &Gaussians, cameras: &[Camera], options: &RenderOptions) -> Vec<RgbImage> {
+/// Base renders of `scene` from each camera, clamped to the displayable range.
+pub fn renders(scene: &Scene, cameras: &[Camera], options: &RenderOptions) -> Vec<RgbImage> {
     cameras
         .iter()
         .map(|cam| {
-            let mut image = render(g, cam, options);
+            let mut image = scene.render_base(cam, options);
             image.data.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
             image
         })

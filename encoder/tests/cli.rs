@@ -112,8 +112,8 @@ fn compresses_an_imported_ply() {
     assert_eq!(report["orbit_psnr"].as_array().unwrap().len(), 2);
     // The hash the encoder reports is that of what the decoder library decodes.
     let decoded = pwgs_decoder::stream::decode(&bytes).unwrap();
-    assert_eq!(report["stream"]["attribute_sha256"], pwgs_decoder::stream::attribute_hash(&decoded.gaussians));
-    assert_eq!(decoded.gaussians.len(), 800);
+    assert_eq!(report["stream"]["attribute_sha256"], decoded.scene.attribute_hash());
+    assert_eq!(decoded.scene.plain_gaussians().unwrap().len(), 800);
     // A target size half the stream's drops Gaussians until it fits, and says so.
     let target = (bytes.len() / 2).to_string();
     let args = ["--from-ply", &path("in.ply"), "-o", &path("half.pwb"), "--quality", "7", "--target-bytes", &target];

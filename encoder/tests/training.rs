@@ -4,7 +4,7 @@
 use burn::tensor::Device;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::scene::{Base, Scene};
 use pwgs_encoder::compress::{QuantizerSettings, StreamContext, compress};
 use pwgs_encoder::evaluate::{MeanScore, evaluate};
 use pwgs_encoder::init::initial_gaussians;
@@ -17,7 +17,9 @@ fn small_scene(dir: &std::path::Path) -> Dataset {
 }
 
 fn mean_psnr(g: &pwgs_decoder::gaussians::Gaussians, data: &Dataset) -> f64 {
-    MeanScore::of(&evaluate(g, None, data, &RenderOptions::default(), None, None).unwrap()).psnr
+    let scene =
+        Scene { base: Base::Plain(g.clone()), wrapper: None, frame: data.normalization.frame(), background: [0.0; 3] };
+    MeanScore::of(&evaluate(&scene, data, None, None).unwrap()).psnr
 }
 
 /// The README's main job: the default generated scene, 600 iterations.
@@ -43,7 +45,7 @@ fn the_main_job_reaches_its_psnr() {
     let n = data.normalization;
     let context = StreamContext { center: n.center.to_array(), scale: n.scale, background: [0.0; 3] };
     let stream = compress(&model, &QuantizerSettings::default(), &context, None).unwrap();
-    let decoded = mean_psnr(&stream.decoded.gaussians, &data);
+    let decoded = mean_psnr(&stream.decoded.scene.plain_gaussians().unwrap(), &data);
     eprintln!("decoded stream: {decoded:.2} dB, {} bytes", stream.bytes.len());
     assert!(decoded > after - 0.6, "the stream lost {:.2} dB", after - decoded);
     assert!(stream.bytes.len() * 8 < pwgs_decoder::ply::inria_ply_size(&model));

@@ -6,10 +6,8 @@ use std::path::Path;
 use std::process::Command;
 
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::stream;
-use pwgs_decoder::wrapper::render_shown;
 
 fn pwenc(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().expect("pwenc runs")
@@ -23,13 +21,12 @@ fn success(out: std::process::Output) {
 fn shown(path: &Path, scene: &Path, wrapped: bool) -> Vec<(String, RgbImage)> {
     let decoded = stream::decode(&std::fs::read(path).unwrap()).unwrap();
     let data = load_scene(scene, &LoadOptions::default()).unwrap();
-    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
-    let wrapper = if wrapped { decoded.wrapper_view() } else { None };
+    let options = decoded.scene.render_options();
     data.test
         .iter()
         .map(|v| {
             let stem = Path::new(&v.name).file_stem().unwrap().to_string_lossy().into_owned();
-            (stem, render_shown(&decoded.gaussians, wrapper, &v.camera, &options).0)
+            (stem, decoded.scene.render(&v.camera, &options, wrapped).image)
         })
         .collect()
 }
@@ -99,7 +96,7 @@ fn ablations_and_bad_wrapper_options() {
     args.extend(["--wd-features", "pixels", "--no-noise", "--wrapper-width", "5", "--wd-crop", "64", "-o", &out]);
     success(pwenc(&args));
     let decoded = stream::decode(&std::fs::read(&out).unwrap()).unwrap();
-    let config = decoded.wrapper.unwrap().config;
+    let config = decoded.scene.wrapper.unwrap().config;
     assert!(!config.noise && config.plucker && config.width == 5);
 
     // No weights anywhere: not in a shared folder, not in a cache. Runs pwenc with `args`, which

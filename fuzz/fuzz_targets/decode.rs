@@ -10,10 +10,8 @@
 use glam::Vec3;
 use libfuzzer_sys::fuzz_target;
 use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
-use pwgs_decoder::stream::{self, Decoded, attribute_hash};
-use pwgs_decoder::wrapper::render_shown;
+use pwgs_decoder::stream::{self, Decoded};
 use pwgs_fuzz::reseal;
 
 fuzz_target!(|data: &[u8]| {
@@ -33,8 +31,8 @@ fn check_reencoding(bytes: &[u8], decoded: &Decoded) {
         |d: &Decoded| stream::encode(&d.header, &d.content, wrapper.as_ref()).expect("decoded content is encodable");
     let encoded = encode(decoded);
     let again = stream::decode(&encoded).expect("a re-encoded stream decodes");
-    assert_eq!(attribute_hash(&again.gaussians), attribute_hash(&decoded.gaussians), "attributes changed");
-    assert_eq!(again.wrapper, decoded.wrapper, "wrapper changed");
+    assert_eq!(again.scene.attribute_hash(), decoded.scene.attribute_hash(), "attributes changed");
+    assert_eq!(again.scene.wrapper, decoded.scene.wrapper, "wrapper changed");
     assert_eq!(encode(&again), encoded, "re-encoding is not a fixed point");
 }
 
@@ -45,8 +43,7 @@ fn render_tiny_view(decoded: &Decoded) {
     let intrinsics = Intrinsics { width: 8, height: 6, fx: 8.0, fy: 8.0, cx: 4.0, cy: 3.0 };
     let eye = center + Vec3::new(0.0, 0.0, -3.0 * header.scale);
     let Ok(camera) = Camera::look_at(intrinsics, eye, center, Vec3::NEG_Y) else { return };
-    let options = RenderOptions { background: header.background, ..RenderOptions::default() };
-    let (image, residual) = render_shown(&decoded.gaussians, decoded.wrapper_view(), &camera, &options);
-    assert!(image.data.iter().all(|v| v.is_finite()), "a rendered pixel is not finite");
-    assert!(residual.iter().flatten().all(|v| v.is_finite()), "a wrapper residual is not finite");
+    let shown = decoded.scene.render(&camera, &decoded.scene.render_options(), true);
+    assert!(shown.image.data.iter().all(|v| v.is_finite()), "a rendered pixel is not finite");
+    assert!(shown.residual.iter().flatten().all(|v| v.is_finite()), "a wrapper residual is not finite");
 }

@@ -18,10 +18,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail, ensure};
 use pwgs_decoder::camera_json::{camera_to_json, parse_camera};
-use pwgs_decoder::raster::{RenderOptions, render};
-use pwgs_decoder::stream::{self, attribute_hash};
+use pwgs_decoder::stream;
 use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
-use pwgs_decoder::wrapper::render_shown;
 
 use crate::expected::{ExpectedRefusal, ExpectedRefusals, ExpectedRender, ExpectedVector};
 use crate::invalid::EXPECTED_FILE;
@@ -105,15 +103,16 @@ fn add_vector(files: &mut Files, v: Vector) -> Result<()> {
     let dir = PathBuf::from("vectors").join(v.name);
     let decoded = stream::decode(&v.stream).context("the reference decoder refuses the vector")?;
     let (container, _) = stream::parse(&v.stream)?;
-    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
+    let scene = &decoded.scene;
+    let options = scene.render_options();
     let mut renders = Vec::new();
     for &name in v.cameras {
         let camera_json = camera_to_json(&content::camera(name));
         // Render the camera as a decoder reads it from the file.
         let camera = parse_camera(&camera_json)?;
-        let (shown, _) = render_shown(&decoded.gaussians, decoded.wrapper_view(), &camera, &options);
-        if decoded.wrapper.is_some() {
-            let base = render(&decoded.gaussians, &camera, &options).to_rgb8();
+        let shown = scene.render(&camera, &options, true).image;
+        if scene.wrapper.is_some() {
+            let base = scene.render_base(&camera, &options).to_rgb8();
             if compare_render(name, &base, &shown.to_rgb8()).is_ok() {
                 bail!("the wrapper moves the {name} view within the tolerance: a decoder ignoring it would pass");
             }
@@ -122,6 +121,7 @@ fn add_vector(files: &mut Files, v: Vector) -> Result<()> {
         image::DynamicImage::ImageRgb8(shown.to_rgb8())
             .write_to(&mut Cursor::new(&mut png), image::ImageFormat::Png)?;
         let noise_sha256 = decoded
+            .scene
             .wrapper
             .as_ref()
             .filter(|w| w.config.noise)
@@ -138,9 +138,9 @@ fn add_vector(files: &mut Files, v: Vector) -> Result<()> {
         version: [container.major, container.minor],
         gaussians: decoded.header.gaussian_count,
         sh_degree: decoded.header.sh_degree,
-        attribute_sha256: attribute_hash(&decoded.gaussians),
-        wrapper: decoded.wrapper.is_some(),
-        wrapper_sha256: decoded.wrapper.as_ref().map(wrapper_sha256),
+        attribute_sha256: scene.attribute_hash(),
+        wrapper: decoded.scene.wrapper.is_some(),
+        wrapper_sha256: decoded.scene.wrapper.as_ref().map(wrapper_sha256),
         renders,
     };
     files.insert(dir.join("expected.json"), json(&expected)?);

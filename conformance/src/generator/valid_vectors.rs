@@ -3,10 +3,10 @@
 
 use anyhow::{Result, ensure};
 use pwgs_bitstream::{FieldWriter, Tag, write_container};
+use pwgs_decoder::stream;
 use pwgs_decoder::stream::entropy::{FrequencyTable, MAX_MAGNITUDE};
 use pwgs_decoder::stream::plain::{self, PlainGaussians, PositionGrid};
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
-use pwgs_decoder::stream::{self, attribute_hash};
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 
 use super::Vector;
@@ -48,16 +48,16 @@ pub fn alike_gaussians() -> PlainGaussians {
 
 pub fn vectors() -> Result<Vec<Vector>> {
     let sh1 = encode(&sh1_content(), None);
-    let sh1_hash = attribute_hash(&stream::decode(&sh1)?.gaussians);
+    let sh1_hash = stream::decode(&sh1)?.scene.attribute_hash();
     let narrow = narrow_tables(&sh1_content());
-    ensure!(attribute_hash(&stream::decode(&narrow)?.gaussians) == sh1_hash, "narrow-tables decodes unlike sh1");
+    ensure!(stream::decode(&narrow)?.scene.attribute_hash() == sh1_hash, "narrow-tables decodes unlike sh1");
     let unknown = unknown_optional_sections(&sh1);
-    ensure!(attribute_hash(&stream::decode(&unknown)?.gaussians) == sh1_hash, "optional sections changed sh1");
+    ensure!(stream::decode(&unknown)?.scene.attribute_hash() == sh1_hash, "optional sections changed sh1");
     let sh2 = encode(&ordinary_gaussians(12, 40, 2), None);
     let reordered = reordered(&sh2);
-    ensure!(stream::decode(&reordered)?.gaussians == stream::decode(&sh2)?.gaussians, "reordering changed sh2");
+    ensure!(stream::decode(&reordered)?.scene == stream::decode(&sh2)?.scene, "reordering changed sh2");
     let (extra_word_tag, extra_word) = extra_zero_word(&sh1)?;
-    ensure!(attribute_hash(&stream::decode(&extra_word)?.gaussians) == sh1_hash, "the extra word changed sh1");
+    ensure!(stream::decode(&extra_word)?.scene.attribute_hash() == sh1_hash, "the extra word changed sh1");
     let alike = alike_gaussians();
     let alike_stream = encode(&alike, None);
     ensure!(alike_stream.len() == alike.len(), "the writer padded to {} bytes", alike_stream.len());

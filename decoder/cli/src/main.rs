@@ -12,10 +12,10 @@ use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_dataset::{LoadOptions, load_cameras};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::scene::Scene;
+use pwgs_decoder::stream;
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
-use pwgs_decoder::stream::{self, Decoded, attribute_hash};
-use pwgs_decoder::wrapper::{WrapperView, render_shown, residual_picture};
+use pwgs_decoder::wrapper::residual_picture;
 
 #[derive(Parser)]
 #[command(
@@ -161,36 +161,39 @@ fn decode(args: DecodeArgs) -> Result<()> {
     let bytes = read_stream(path)?;
     let start = Instant::now();
     let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
-    eprintln!("decoded {} Gaussians in {:.3} s", decoded.gaussians.len(), start.elapsed().as_secs_f64());
-    if args.residual.is_some() && decoded.wrapper.is_none() {
+    let scene = &decoded.scene;
+    eprintln!("decoded {} Gaussians in {:.3} s", scene.gaussian_count(), start.elapsed().as_secs_f64());
+    if args.residual.is_some() && scene.wrapper.is_none() {
         bail!("--residual: {} has no perceptual wrapper", path.display());
     }
-    let wrapper = if args.no_wrapper { None } else { decoded.wrapper_view() };
+    let wrapped = !args.no_wrapper;
     if args.hash {
-        println!("{}", attribute_hash(&decoded.gaussians));
+        println!("{}", scene.attribute_hash());
     }
     if let Some(ply) = &args.export_ply {
-        pwgs_decoder::ply::write_gaussians(ply, &decoded.gaussians)?;
+        let gaussians = scene.plain_gaussians().context("--export-ply: this base has no view-independent Gaussians")?;
+        pwgs_decoder::ply::write_gaussians(ply, gaussians)?;
         eprintln!("wrote {}", ply.display());
     }
     if let Some(view) = &args.view {
         let text = std::fs::read_to_string(view).with_context(|| format!("cannot read {}", view.display()))?;
         let camera = parse_camera(&text).with_context(|| format!("{}: bad camera", view.display()))?;
         let out = args.output.as_deref().expect("clap requires -o");
-        render_to(&decoded, wrapper, &camera, args.max_pixels, out, args.residual.as_deref())?;
+        render_to(scene, wrapped, &camera, args.max_pixels, out, args.residual.as_deref())?;
     }
-    if let Some(scene) = &args.views {
+    if let Some(folder) = &args.views {
         let out = args.output.as_deref().expect("clap requires -o");
-        let dataset = DatasetViews { scene, split: args.split, downscale: args.downscale };
-        render_dataset(&decoded, wrapper, &dataset, args.max_pixels, out)?;
+        let dataset = DatasetViews { scene: folder, split: args.split, downscale: args.downscale };
+        render_dataset(scene, wrapped, &dataset, args.max_pixels, out)?;
     }
     Ok(())
 }
 
-/// Renders one view (through the wrapper when given) to `out`, and the residual to `residual`.
+/// Renders one view (through the wrapper, if any, when `wrapped`) to `out`, and the residual
+/// to `residual`.
 fn render_to(
-    decoded: &Decoded,
-    wrapper: Option<WrapperView>,
+    scene: &Scene,
+    wrapped: bool,
     camera: &Camera,
     max_pixels: u64,
     out: &Path,
@@ -205,11 +208,10 @@ fn render_to(
             camera.height
         );
     }
-    let options = RenderOptions { background: decoded.header.background, ..Default::default() };
     let start = Instant::now();
-    let (image, r) = render_shown(&decoded.gaussians, wrapper, camera, &options);
-    image.save_png(out)?;
-    if let (Some(path), Some(r)) = (residual, r) {
+    let shown = scene.render(camera, &scene.render_options(), wrapped);
+    shown.image.save_png(out)?;
+    if let (Some(path), Some(r)) = (residual, shown.residual) {
         residual_picture(&r, camera.width, camera.height).save_png(path)?;
         eprintln!("wrote {}", path.display());
     }
@@ -224,28 +226,22 @@ struct DatasetViews<'a> {
     downscale: u32,
 }
 
-fn render_dataset(
-    decoded: &Decoded,
-    wrapper: Option<WrapperView>,
-    views: &DatasetViews,
-    max_pixels: u64,
-    out: &Path,
-) -> Result<()> {
-    let DatasetViews { scene, split, downscale } = *views;
+fn render_dataset(scene: &Scene, wrapped: bool, views: &DatasetViews, max_pixels: u64, out: &Path) -> Result<()> {
+    let DatasetViews { scene: folder, split, downscale } = *views;
     let options = LoadOptions { downscale, ..Default::default() };
-    let data = load_cameras(scene, &options).with_context(|| format!("cannot load the scene {}", scene.display()))?;
+    let data = load_cameras(folder, &options).with_context(|| format!("cannot load the scene {}", folder.display()))?;
     let views: Vec<_> = match split {
         Split::Test => data.test.iter().collect(),
         Split::Train => data.train.iter().collect(),
         Split::All => data.train.iter().chain(&data.test).collect(),
     };
     if views.is_empty() {
-        bail!("{} has no views in that split", scene.display());
+        bail!("{} has no views in that split", folder.display());
     }
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     for view in views {
         let stem = Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
-        render_to(decoded, wrapper, &view.camera, max_pixels, &out.join(format!("{stem}.png")), None)?;
+        render_to(scene, wrapped, &view.camera, max_pixels, &out.join(format!("{stem}.png")), None)?;
     }
     Ok(())
 }

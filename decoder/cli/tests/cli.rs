@@ -42,8 +42,8 @@ fn renders_views_exports_ply_and_prints_info() {
     assert_eq!(image::open(&png).unwrap().to_rgb8(), image::open(vector("view_opencv.png")).unwrap().to_rgb8());
     stdout(&pwdec(&[s, "--export-ply", ply.to_str().unwrap()]));
     let exported = pwgs_decoder::ply::read_gaussians(&ply).unwrap().gaussians;
-    let decoded = pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap().gaussians;
-    assert_eq!(exported, decoded);
+    let decoded = pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap();
+    assert_eq!(Some(&exported), decoded.scene.plain_gaussians());
     let info = stdout(&pwdec(&["info", s]));
     for needle in ["version       1.0", "gaussians     7077", "'POSN'", "'SHRS'"] {
         assert!(info.contains(needle), "`{needle}` missing from:\n{info}");

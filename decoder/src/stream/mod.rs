@@ -11,11 +11,10 @@ use pwgs_bitstream::{Container, FieldError, SECTION_OVERHEAD, StreamError, Tag, 
 use sha2::{Digest, Sha256};
 
 use crate::gaussians::Gaussians;
+use crate::scene::{Base, Scene};
 use header::{BaseKind, Header};
 use plain::PlainGaussians;
 use wrap::{QuantizedSynthesis, WRAPPER};
-
-use crate::wrapper::synthesis::SynthesisWeights;
 
 /// Why a stream could not be decoded.
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -83,21 +82,13 @@ pub fn encode(
 /// The optional section that pads a stream to one byte per Gaussian; decoders skip it.
 pub const PADDING: Tag = Tag(*b"pad ");
 
-/// A decoded stream.
+/// A decoded stream: its header, the quantized content as coded, and the scene it
+/// reconstructs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decoded {
     pub header: Header,
     pub content: PlainGaussians,
-    pub gaussians: Gaussians,
-    /// The synthesis network's dequantized weights, when the stream carries a wrapper.
-    pub wrapper: Option<SynthesisWeights>,
-}
-
-impl Decoded {
-    /// The wrapper with the stream's scene frame, if the stream carries one.
-    pub fn wrapper_view(&self) -> Option<crate::wrapper::WrapperView<'_>> {
-        self.wrapper.as_ref().map(|weights| crate::wrapper::WrapperView { weights, frame: self.header.frame() })
-    }
+    pub scene: Scene,
 }
 
 /// Parses, verifies and decodes a stream, checking in SPEC.md's order (section 6.4).
@@ -111,12 +102,13 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     check_count_against_length(&header, bytes.len())?;
     let BaseKind::Plain3dgs = header.base;
     let content = PlainGaussians::read_sections(&container, header.gaussian_count as usize, header.sh_degree)?;
-    let gaussians = content.dequantize();
+    let base = Base::Plain(content.dequantize());
     let wrapper = match container.section(WRAPPER) {
         Some(section) => Some(QuantizedSynthesis::read(section.payload, container.minor)?.dequantize()),
         None => None,
     };
-    Ok(Decoded { header, content, gaussians, wrapper })
+    let scene = Scene { base, wrapper, frame: header.frame(), background: header.background };
+    Ok(Decoded { header, content, scene })
 }
 
 /// SPEC.md section 9: a stream may declare at most one Gaussian per byte of its length. Every

@@ -113,24 +113,6 @@ pub struct WrapperView<'a> {
     pub frame: SceneFrame,
 }
 
-/// What a decoder shows for `camera`: the base render, passed through the wrapper when one is
-/// given (then the residual comes along).
-pub fn render_shown(
-    g: &crate::gaussians::Gaussians,
-    wrapper: Option<WrapperView>,
-    camera: &Camera,
-    options: &crate::raster::RenderOptions,
-) -> (RgbImage, Option<Vec<f32>>) {
-    let base = crate::raster::render(g, camera, options);
-    match wrapper {
-        Some(w) => {
-            let wrapped = apply(w.weights, &base, camera, w.frame);
-            (wrapped.image, Some(wrapped.residual))
-        }
-        None => (base, None),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use glam::Vec3;
 use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::scene::{Base, Scene};
 use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
@@ -61,8 +62,11 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
     if let Some(orbit) = &job.orbit {
         let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)?;
         let options = RenderOptions { background: job.background, ..Default::default() };
-        let reference = renders(&gaussians, &cameras, &options);
-        let decoded = renders(&compressed.decoded.gaussians, &cameras, &options);
+        let decoded_scene = &compressed.decoded.scene;
+        let (frame, background) = (decoded_scene.frame, decoded_scene.background);
+        let input = Scene { base: Base::Plain(gaussians), wrapper: None, frame, background };
+        let reference = renders(&input, &cameras, &options);
+        let decoded = renders(decoded_scene, &cameras, &options);
         orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
         if let Some(dir) = &orbit.renders {
             for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {

@@ -12,7 +12,6 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::stream::attribute_hash;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
@@ -111,7 +110,7 @@ fn write_stream(
         sh_degree: header.sh_degree,
         sections,
         wrapper: wrapper.map(WrapperSummary::of),
-        attribute_sha256: attribute_hash(&compressed.decoded.gaussians),
+        attribute_sha256: compressed.decoded.scene.attribute_hash(),
         seconds: start.elapsed().as_secs_f64(),
     };
     println!(

@@ -10,9 +10,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
-use pwgs_decoder::wrapper::{SceneFrame, WrapperView, conditioning};
+use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
@@ -131,14 +132,21 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         }
         None => None,
     };
-    // What is evaluated is what a decoder shows: the decoded stream when there is one, and the
-    // wrapper with exactly its dequantized weights.
-    let shown = stream.as_ref().map_or(&gaussians, |(c, _)| &c.decoded.gaussians);
-    let dequantized = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
-    let wrapper_view = dequantized.as_ref().map(|weights| WrapperView { weights, frame });
+    let ply_bytes = pwgs_decoder::ply::inria_ply_size(&gaussians);
+    // What is evaluated is what a decoder shows: the decoded stream when there is one, else the
+    // trained model with the wrapper's dequantized weights.
+    let trained;
+    let shown = match &stream {
+        Some((c, _)) => &c.decoded.scene,
+        None => {
+            let wrapper = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
+            trained = Scene { base: Base::Plain(gaussians), wrapper, frame, background };
+            &trained
+        }
+    };
     let (views, mean) = match &job.eval {
         Some(dir) => {
-            let views = evaluate(shown, wrapper_view, &data, &options, Some(dir), suite.as_ref())?;
+            let views = evaluate(shown, &data, Some(dir), suite.as_ref())?;
             for v in &views {
                 println!(
                     "{:<24} PSNR {:6.2} dB  SSIM {:.4}{}  render {:.3} s",
@@ -170,7 +178,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         test_views: data.test.len(),
         load_seconds,
         training,
-        ply_bytes: pwgs_decoder::ply::inria_ply_size(&gaussians),
+        ply_bytes,
         stream: stream.map(|(_, summary)| summary),
         mean,
         views,
