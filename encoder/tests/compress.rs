@@ -37,10 +37,10 @@ fn default_stream_is_faithful_and_drops_what_the_scene_does_not_need() {
     let camera = axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0);
     let options = RenderOptions::default();
     let reference = render(&g, &camera, &options);
-    let p = psnr(&render(&c.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference);
+    let p = psnr(&render(c.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference);
     assert!(p > 35.0, "decoded render PSNR {p:.2} dB at the default quality");
     let fine = compress(&g, &QuantizerSettings::for_quality(8), &context, None).unwrap();
-    let p = psnr(&render(&fine.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference);
+    let p = psnr(&render(fine.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference);
     assert!(p > 40.0, "decoded render PSNR {p:.2} dB at quality 8");
     let raw = pwgs_decoder::ply::inria_ply_size(&g);
     assert!(c.bytes.len() * 8 < raw, "{} bytes against {raw} as PLY", c.bytes.len());
@@ -57,7 +57,7 @@ fn the_quality_knob_trades_size_for_fidelity() {
         .iter()
         .map(|&q| {
             let c = compress(&g, &QuantizerSettings::for_quality(q), &context, None).unwrap();
-            (c.bytes.len(), psnr(&render(&c.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference))
+            (c.bytes.len(), psnr(&render(c.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference))
         })
         .collect();
     assert!(points.windows(2).all(|w| w[0].0 < w[1].0 && w[0].1 < w[1].1), "{points:?}");

@@ -45,7 +45,7 @@ fn the_main_job_reaches_its_psnr() {
     let n = data.normalization;
     let context = StreamContext { center: n.center.to_array(), scale: n.scale, background: [0.0; 3] };
     let stream = compress(&model, &QuantizerSettings::default(), &context, None).unwrap();
-    let decoded = mean_psnr(&stream.decoded.scene.plain_gaussians().unwrap(), &data);
+    let decoded = mean_psnr(stream.decoded.scene.plain_gaussians().unwrap(), &data);
     eprintln!("decoded stream: {decoded:.2} dB, {} bytes", stream.bytes.len());
     assert!(decoded > after - 0.6, "the stream lost {:.2} dB", after - decoded);
     assert!(stream.bytes.len() * 8 < pwgs_decoder::ply::inria_ply_size(&model));
