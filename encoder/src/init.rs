@@ -21,11 +21,35 @@ const MIN_SCALE: f32 = 1e-7;
 pub const RANDOM_POINTS: usize = 10_000;
 
 /// The initial Gaussians of a dataset: from its point cloud, or, when it has none, from
-/// [`RANDOM_POINTS`] points sampled in the training cameras' view frusta.
-pub fn initial_gaussians(data: &Dataset, seed: u64) -> anyhow::Result<Gaussians> {
-    match &data.points {
-        Some(points) if !points.positions.is_empty() => gaussians_from_points(points, 0),
-        _ => gaussians_from_points(&random_frustum_points(data, RANDOM_POINTS, seed)?, 0),
+/// [`RANDOM_POINTS`] points sampled in the training cameras' view frusta; at most `max` of
+/// them (see [`subsample`]).
+pub fn initial_gaussians(data: &Dataset, seed: u64, max: usize) -> anyhow::Result<Gaussians> {
+    let cloud = match &data.points {
+        Some(points) if !points.positions.is_empty() => subsample(points, max, seed),
+        _ => random_frustum_points(data, RANDOM_POINTS.min(max), seed)?,
+    };
+    gaussians_from_points(&cloud, 0)
+}
+
+/// At most `max` points of `cloud`, chosen at random (a seeded partial shuffle) and kept in
+/// their original order, so that a Gaussian cap bounds the model from the first iteration even
+/// when the SfM cloud is larger than the cap. A cloud within the cap is returned whole.
+pub fn subsample(cloud: &PointCloud, max: usize, seed: u64) -> PointCloud {
+    let n = cloud.positions.len();
+    if n <= max {
+        return cloud.clone();
+    }
+    let mut rng = SplitMix64(seed ^ 0x5355_4253);
+    let mut order: Vec<usize> = (0..n).collect();
+    for i in 0..max {
+        let j = i + (rng.next_u64() % (n - i) as u64) as usize;
+        order.swap(i, j);
+    }
+    let mut kept = order[..max].to_vec();
+    kept.sort_unstable();
+    PointCloud {
+        positions: kept.iter().map(|&i| cloud.positions[i]).collect(),
+        colors: kept.iter().map(|&i| cloud.colors[i]).collect(),
     }
 }
 
@@ -87,5 +111,23 @@ mod tests {
         let color = pwgs_decoder::gaussians::SH_C0 * g.sh[0] + 0.5;
         assert!((color - 0.2).abs() < 1e-6);
         assert!((1.0 / (1.0 + (-g.opacity_logits[0]).exp()) - INITIAL_OPACITY).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_cloud_above_the_cap_is_subsampled_in_order() {
+        let cloud = PointCloud {
+            positions: (0..100).map(|i| [i as f32, 0.0, 0.0]).collect(),
+            colors: (0..100).map(|i| [i as f32 / 100.0; 3]).collect(),
+        };
+        assert_eq!(subsample(&cloud, 100, 1), cloud);
+        let kept = subsample(&cloud, 30, 1);
+        assert_eq!((kept.positions.len(), kept.colors.len()), (30, 30));
+        let xs: Vec<f32> = kept.positions.iter().map(|p| p[0]).collect();
+        assert!(xs.windows(2).all(|w| w[0] < w[1]), "distinct points in their order: {xs:?}");
+        assert!(kept.positions.iter().zip(&kept.colors).all(|(p, c)| c[0] == p[0] / 100.0), "colors follow");
+        assert_eq!(subsample(&cloud, 30, 1), kept, "the same seed keeps the same points");
+        assert_ne!(subsample(&cloud, 30, 2), kept);
+        // Spread over the cloud, not its first points.
+        assert!(xs[29] > 60.0, "{xs:?}");
     }
 }

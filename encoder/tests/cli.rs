@@ -35,6 +35,14 @@ fn trains_evaluates_and_writes_outputs() {
     // Resuming from the exported model works.
     let out = pwenc(&[&dir("scene"), "--iters", "5", "--init-ply", &dir("model.ply")]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // A cap below the SfM cloud's size bounds the model from the start, and says so.
+    let out = pwenc(&[&dir("scene"), "--iters", "3", "--max-gaussians", "40", "--export-ply", &dir("capped.ply")]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("initialization: 40 of the "), "{stdout}");
+    let capped = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("capped.ply"))).unwrap();
+    assert!(capped.gaussians.len() <= 40, "{} Gaussians", capped.gaussians.len());
 }
 
 #[test]

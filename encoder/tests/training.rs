@@ -28,7 +28,7 @@ fn the_main_job_reaches_its_psnr() {
     let tmp = tempfile::tempdir().unwrap();
     generate(tmp.path(), &SyntheticOptions::default()).unwrap();
     let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
-    let initial = initial_gaussians(&data, 0).unwrap();
+    let initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
     let before = mean_psnr(&initial, &data);
     let mut trainer = Trainer::new(TrainConfig::for_iterations(600), &data, &initial, Device::flex()).unwrap();
     let summary = train(&mut trainer, |_, _| {}).unwrap();
@@ -55,7 +55,7 @@ fn the_main_job_reaches_its_psnr() {
 fn a_diverging_step_is_undone_and_training_stops_with_the_last_good_model() {
     let tmp = tempfile::tempdir().unwrap();
     let data = small_scene(tmp.path());
-    let initial = initial_gaussians(&data, 0).unwrap();
+    let initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
     let mut config = TrainConfig::for_iterations(50);
     config.lr_log_scales = f32::INFINITY;
     let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();
@@ -70,7 +70,7 @@ fn a_diverging_step_is_undone_and_training_stops_with_the_last_good_model() {
 fn non_finite_initial_models_are_rejected() {
     let tmp = tempfile::tempdir().unwrap();
     let data = small_scene(tmp.path());
-    let mut initial = initial_gaussians(&data, 0).unwrap();
+    let mut initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
     initial.opacity_logits[7] = f32::NAN;
     let error = Trainer::new(TrainConfig::for_iterations(10), &data, &initial, Device::flex()).err().unwrap();
     assert!(error.to_string().contains("opacity_logits"), "{error}");
@@ -80,7 +80,7 @@ fn non_finite_initial_models_are_rejected() {
 fn training_resumes_from_an_exported_ply() {
     let tmp = tempfile::tempdir().unwrap();
     let data = small_scene(&tmp.path().join("scene"));
-    let initial = initial_gaussians(&data, 0).unwrap();
+    let initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
     let mut trainer = Trainer::new(TrainConfig::for_iterations(60), &data, &initial, Device::flex()).unwrap();
     train(&mut trainer, |_, _| {}).unwrap();
     let trained = trainer.gaussians();
@@ -105,7 +105,7 @@ fn the_stage_two_pixel_term_adds_the_base_objective() {
     // WD needs views of at least 61 x 61 pixels.
     generate(tmp.path(), &SyntheticOptions { width: 72, height: 64, views: 6, seed: 4, points: 800 }).unwrap();
     let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
-    let initial = initial_gaussians(&data, 0).unwrap();
+    let initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
     let first_loss = |pixel_weight: f32| {
         let mut config = TrainConfig::for_iterations(1);
         config.wrapper = Some(WrapperTraining {

@@ -83,10 +83,18 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         first.width,
         first.height
     );
+    let cap = job.config.densify.max_gaussians;
     let initial = match &job.init_ply {
         Some(path) => read_ply(path)?,
-        None => initial_gaussians(&data, job.config.seed)?,
+        None => initial_gaussians(&data, job.config.seed, cap)?,
     };
+    if let Some(points) = data.points.as_ref().filter(|p| job.init_ply.is_none() && p.positions.len() > cap) {
+        println!(
+            "initialization: {} of the {} SfM points (--max-gaussians {cap})",
+            initial.len(),
+            points.positions.len()
+        );
+    }
     let mut config = job.config.clone();
     config.initial_sh_degree = initial.sh_degree;
     config.schedule_stage_two(data.train.len());
