@@ -93,6 +93,7 @@ pub fn exp_f64(x: f64) -> f64 {
 /// e^x in f32. Results below 2^-126 are 0 (the rasterizer's falloff is cut far above), above
 /// `f32::MAX` infinity. This is the rasterizer's innermost call, so it takes no branch for NaN
 /// (which flows through the arithmetic) and scales by adding k to the exponent bits.
+#[inline]
 pub fn exp_f32(x: f32) -> f32 {
     if x > 88.72 {
         return f32::INFINITY;
