@@ -1,6 +1,7 @@
 //! The pwgs decoder library: everything a decoder needs to turn a stream into pixels, and
 //! the normative computations the encoder calls instead of re-implementing them.
 
+pub mod anchor;
 pub mod atomic_file;
 pub mod camera;
 pub mod camera_json;

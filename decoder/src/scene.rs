@@ -7,6 +7,7 @@
 
 use std::borrow::Cow;
 
+use crate::anchor::AnchorModel;
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
 use crate::raster::{RenderOptions, render};
@@ -20,6 +21,8 @@ use crate::wrapper::{SceneFrame, WrapperView, apply};
 pub enum Base {
     /// Plain 3DGS: the same Gaussians for every camera.
     Plain(Gaussians),
+    /// Anchors whose MLPs derive each view's Gaussians.
+    Anchors(Box<AnchorModel>),
 }
 
 /// A base, the perceptual wrapper when the stream has one, and what rendering needs of the
@@ -45,9 +48,10 @@ pub struct Shown {
 
 impl Scene {
     /// The Gaussians that render `camera`'s view.
-    pub fn gaussians_for(&self, _camera: &Camera) -> Cow<'_, Gaussians> {
+    pub fn gaussians_for(&self, camera: &Camera) -> Cow<'_, Gaussians> {
         match &self.base {
             Base::Plain(g) => Cow::Borrowed(g),
+            Base::Anchors(model) => Cow::Owned(model.gaussians_for(camera)),
         }
     }
 
@@ -56,6 +60,7 @@ impl Scene {
     pub fn plain_gaussians(&self) -> Option<&Gaussians> {
         match &self.base {
             Base::Plain(g) => Some(g),
+            Base::Anchors(_) => None,
         }
     }
 
@@ -63,14 +68,16 @@ impl Scene {
     pub fn gaussian_count(&self) -> usize {
         match &self.base {
             Base::Plain(g) => g.len(),
+            Base::Anchors(model) => model.len() * model.offsets_per_anchor,
         }
     }
 
-    /// SHA-256 of the normative reconstruction (for the plain base, its Gaussians' attributes):
-    /// two decoders agree when their hashes do (SPEC.md section 7).
+    /// SHA-256 of the normative reconstruction (the plain base's Gaussians, or the anchors and
+    /// their MLPs): two decoders agree when their hashes do (SPEC.md section 7).
     pub fn attribute_hash(&self) -> String {
         match &self.base {
             Base::Plain(g) => attribute_hash(g),
+            Base::Anchors(model) => model.hash(),
         }
     }
 
