@@ -13,7 +13,7 @@
 /// instructions.
 const ROUND_F64: f64 = 6_755_399_441_055_744.0;
 /// 1.5 * 2^23, the same for f32 below 2^22.
-const ROUND_F32: f32 = 12_582_912.0;
+pub(crate) const ROUND_F32: f32 = 12_582_912.0;
 
 /// ln 2 split so that `k * LN2_HI` is exact for |k| < 2^11 (its low 32 bits are zero).
 const LN2_HI: f64 = 0.693_147_180_369_123_8;
@@ -21,10 +21,13 @@ const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
 const LOG2_E: f64 = std::f64::consts::LOG2_E;
 const SQRT_2: f64 = std::f64::consts::SQRT_2;
 
-/// ln 2 split for f32: `LN2_HI_F32` has 9 significant bits, so `k * LN2_HI_F32` is exact for
+/// ln 2 split for f32: `EXP_F32_LN2_HI` has 9 significant bits, so `k * EXP_F32_LN2_HI` is exact for
 /// |k| < 2^15.
-const LN2_HI_F32: f32 = 0.693_359_4;
-const LN2_LO_F32: f32 = -2.121_944_4e-4;
+pub(crate) const EXP_F32_LN2_HI: f32 = 0.693_359_4;
+pub(crate) const EXP_F32_LN2_LO: f32 = -2.121_944_4e-4;
+/// Above this `exp_f32` is infinity, below `EXP_F32_LO` zero.
+pub(crate) const EXP_F32_HI: f32 = 88.72;
+pub(crate) const EXP_F32_LO: f32 = -87.33;
 
 /// 1/n! for n = 13 down to 0, the Taylor coefficients of e^r from the highest.
 const EXP_TAYLOR: [f64; 14] = [
@@ -44,7 +47,8 @@ const EXP_TAYLOR: [f64; 14] = [
     1.0,
 ];
 /// 1/n! for n = 7 down to 0.
-const EXP_TAYLOR_F32: [f32; 8] = [1.0 / 5_040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0];
+pub(crate) const EXP_F32_COEFFICIENTS: [f32; 8] =
+    [1.0 / 5_040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0];
 /// 1/(2n + 1) for n = 12 down to 0: atanh(s) / s as a series in s^2, from the highest term.
 const ATANH_SERIES: [f64; 13] = [
     1.0 / 25.0,
@@ -95,16 +99,16 @@ pub fn exp_f64(x: f64) -> f64 {
 /// (which flows through the arithmetic) and scales by adding k to the exponent bits.
 #[inline]
 pub fn exp_f32(x: f32) -> f32 {
-    if x > 88.72 {
+    if x > EXP_F32_HI {
         return f32::INFINITY;
     }
-    if x < -87.33 {
+    if x < EXP_F32_LO {
         return 0.0;
     }
     let k = (x * std::f32::consts::LOG2_E + ROUND_F32) - ROUND_F32;
-    let r = (x - k * LN2_HI_F32) - k * LN2_LO_F32;
+    let r = (x - k * EXP_F32_LN2_HI) - k * EXP_F32_LN2_LO;
     // Taylor series to r^7 (truncation below 3e-9 for |r| <= 0.35).
-    let p = EXP_TAYLOR_F32.iter().fold(0.0, |p, &c| p * r + c);
+    let p = EXP_F32_COEFFICIENTS.iter().fold(0.0, |p, &c| p * r + c);
     // p * 2^k by exponent arithmetic: p lies in [0.70, 1.42] and, within the bounds above, a
     // k of -126 comes with p > 1 and a k of 128 with p >= 1 only past f32::MAX, where the
     // exponent field becomes all ones: infinity, as it should. A NaN x gives k = 0 and p NaN.

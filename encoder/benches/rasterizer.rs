@@ -1,4 +1,5 @@
-//! Rasterizer benchmark: forward and backward time, blend evaluations per second, and the
+//! Rasterizer benchmark: forward time with the scalar and the vectorized blend (and their
+//! ratio, which survives a noisy machine), backward time, blend evaluations per second, and the
 //! speedup over the naive reference renderer, for 10k / 100k / 1M random Gaussians at 504x378
 //! and 1008x756. Run with `cargo bench -p pwgs-encoder --bench rasterizer` (add `-- --quick`
 //! for 10k and 100k only). Timings depend on the machine: report them with it.
@@ -11,7 +12,7 @@ use std::time::Instant;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{RenderOptions, Rendered, rasterize};
+use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, rasterize};
 use pwgs_encoder::backward::backward;
 
 /// Median of `runs` timings of `f`, in seconds.
@@ -58,23 +59,26 @@ fn main() {
     let counts: &[usize] = if quick { &[10_000, 100_000] } else { &[10_000, 100_000, 1_000_000] };
     let options = RenderOptions::default();
     println!("threads: {}", rayon::current_num_threads());
+    let scalar = RenderOptions { blend: BlendPath::Scalar, ..options };
     println!(
-        "{:>9} {:>10} {:>9} {:>11} {:>12} {:>13} {:>11}",
-        "gaussians", "image", "visible", "forward s", "backward s", "blend pairs", "pairs/s fwd"
+        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>7} {:>11} {:>12} {:>11}",
+        "gaussians", "image", "visible", "scalar s", "forward s", "ratio", "backward s", "blend pairs", "pairs/s fwd"
     );
     for &(width, height) in &[(504u32, 378u32), (1008, 756)] {
         let cam = camera(width, height);
         for &n in counts {
             let g = scene(n);
             let runs = if n >= 1_000_000 { 3 } else { 5 };
+            let (forward_scalar, _) = time(runs, || rasterize(&g, &cam, &scalar));
             let (forward, rendered) = time(runs, || rasterize(&g, &cam, &options));
             let weights = vec![1.0f32; rendered.color.data.len()];
             let (backward_s, _) = time(runs, || backward(&g, &cam, &options, &rendered, &weights));
             let pairs = blend_pairs(&rendered);
             println!(
-                "{n:>9} {:>10} {:>9} {forward:>11.4} {backward_s:>12.4} {pairs:>13} {:>11.3e}",
+                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>7.2} {backward_s:>11.4} {pairs:>12} {:>11.3e}",
                 format!("{width}x{height}"),
                 rendered.splats.len(),
+                forward_scalar / forward,
                 pairs as f64 / forward
             );
         }

@@ -9,6 +9,7 @@
 //! is the one GPU renderers and the encoder's backward pass are checked against.
 
 pub mod blend;
+pub mod blend_simd;
 pub mod project;
 pub mod sh;
 pub mod tiles;
@@ -34,6 +35,15 @@ pub enum Cutoff {
     Smooth,
 }
 
+/// Which implementation blends the tiles; both give the same bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BlendPath {
+    /// One pixel at a time: the reference.
+    Scalar,
+    /// Eight pixels of a tile row at a time ([`blend_simd`]).
+    Vectorized,
+}
+
 /// Rendering settings; the defaults are those of 3DGS and gsplat.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
@@ -44,6 +54,7 @@ pub struct RenderOptions {
     /// Blending stops before the transmittance would fall to this or below.
     pub transmittance_min: f32,
     pub cutoff: Cutoff,
+    pub blend: BlendPath,
 }
 
 impl Default for RenderOptions {
@@ -54,6 +65,7 @@ impl Default for RenderOptions {
             alpha_max: 0.99,
             transmittance_min: 1e-4,
             cutoff: Cutoff::Hard,
+            blend: BlendPath::Vectorized,
         }
     }
 }
@@ -137,7 +149,10 @@ pub fn rasterize_window(gaussians: &Gaussians, camera: &Camera, window: Window, 
         .enumerate()
         .for_each(|(ty, (((color, transmittance), depth), last_contributor))| {
             let band = blend::Band { color, transmittance, depth, last_contributor };
-            blend::blend_band(ty as u32, &bins, &splats, options, band);
+            match options.blend {
+                BlendPath::Scalar => blend::blend_band(ty as u32, &bins, &splats, options, band),
+                BlendPath::Vectorized => blend_simd::blend_band(ty as u32, &bins, &splats, options, band),
+            }
         });
     Rendered { color: RgbImage { width, height, data: color }, transmittance, depth, last_contributor, splats, bins }
 }
