@@ -2,6 +2,7 @@
 //! operation, training, evaluation, metrics, and whole encoder runs (`session`). Scene loading lives in the `pwgs-dataset`
 //! crate beside it, rendering and everything normative in `pwgs-decoder`.
 
+pub mod anchor;
 pub mod backward;
 pub mod compress;
 pub mod evaluate;

@@ -1,0 +1,245 @@
+//! Training the anchor base for pixels (Scaffold-GS's objective: 0.8 L1 + 0.2 (1 - SSIM) +
+//! 0.01 x the mean volume of the neural Gaussians), with Scaffold-GS's learning rates. Each
+//! step derives the view's neural Gaussians with the same formulas as
+//! [`pwgs_decoder::anchor`], on tensors, and renders them with the differentiable rasterizer.
+//!
+//! Anchors stay where initialization put them; growing and pruning anchors, learned masks and
+//! the rate term come next (issue 15).
+
+use anyhow::{Result, bail};
+use burn::tensor::activation::{log_sigmoid, sigmoid};
+use burn::tensor::{Device, Int, Tensor, TensorData};
+use pwgs_dataset::Dataset;
+use pwgs_decoder::anchor::{AnchorModel, Mlp};
+use pwgs_decoder::camera::Camera;
+use pwgs_decoder::gaussians::SH_C0;
+use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::raster::RenderOptions;
+
+use crate::metrics::ssim::{SsimConvention, ssim};
+use crate::splat_op::{SplatView, render};
+use crate::train::adam::direction;
+use crate::train::params::tensor_values;
+
+/// The trained tensors, in this order: features [N, F], scaling [N, 6], offsets [N, 3K], then
+/// for each MLP (opacity, color, covariance) W1 [in, hidden], b1 [1, hidden], W2 [hidden, out],
+/// b2 [1, out].
+const PARAMETERS: usize = 15;
+
+/// Learning rates at the start and the end of training (log-linear decay), per parameter
+/// group, from Scaffold-GS; the offsets' rates are also scaled by the scene extent.
+const RATES: [[f32; 2]; 6] = [
+    [0.0075, 0.0075], // features
+    [0.007, 0.007],   // scaling
+    [0.01, 1e-4],     // offsets
+    [0.002, 2e-5],    // opacity MLP
+    [0.008, 5e-5],    // color MLP
+    [0.004, 0.004],   // covariance MLP
+];
+
+/// Weight of the neural Gaussians' mean volume in the loss (Scaffold-GS).
+const VOLUME_WEIGHT: f32 = 0.01;
+
+/// The anchor trainer's state.
+pub struct AnchorTrainer {
+    positions: Tensor<2>,
+    params: Vec<Tensor<2>>,
+    moments: Vec<(Tensor<2>, Tensor<2>)>,
+    shape: [usize; 3],
+    masks: Vec<bool>,
+    views: Vec<(Camera, Tensor<3>)>,
+    background: [f32; 3],
+    extent: f32,
+    rng: SplitMix64,
+    pub iteration: u32,
+    pub iterations: u32,
+}
+
+/// What one step reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnchorStep {
+    pub loss: f32,
+    pub psnr: f32,
+    /// Neural Gaussians rendered.
+    pub gaussians: usize,
+}
+
+fn host_tensor(values: &[f32], shape: [usize; 2], device: &Device) -> Tensor<2> {
+    Tensor::from_data(TensorData::new(values.to_vec(), shape), device)
+}
+
+/// Row-major [out][in] weights as an [in, out] tensor, and back.
+fn transposed(values: &[f32], outputs: usize, inputs: usize) -> Vec<f32> {
+    (0..inputs * outputs).map(|j| values[(j % outputs) * inputs + j / outputs]).collect()
+}
+
+fn mlp_tensors(m: &Mlp, device: &Device) -> [Tensor<2>; 4] {
+    [
+        host_tensor(&transposed(&m.w1, m.hidden, m.inputs), [m.inputs, m.hidden], device),
+        host_tensor(&m.b1, [1, m.hidden], device),
+        host_tensor(&transposed(&m.w2, m.outputs, m.hidden), [m.hidden, m.outputs], device),
+        host_tensor(&m.b2, [1, m.outputs], device),
+    ]
+}
+
+fn mlp_of(t: &[Tensor<2>]) -> Mlp {
+    let [inputs, hidden] = t[0].dims();
+    let outputs = t[2].dims()[1];
+    Mlp {
+        inputs,
+        hidden,
+        outputs,
+        w1: transposed(&tensor_values(t[0].clone()), inputs, hidden),
+        b1: tensor_values(t[1].clone()),
+        w2: transposed(&tensor_values(t[2].clone()), hidden, outputs),
+        b2: tensor_values(t[3].clone()),
+    }
+}
+
+/// relu(x W1 + b1) W2 + b2 for rows x.
+fn forward(x: Tensor<2>, t: &[Tensor<2>]) -> Tensor<2> {
+    (x.matmul(t[0].clone()) + t[1].clone()).clamp_min(0.0).matmul(t[2].clone()) + t[3].clone()
+}
+
+impl AnchorTrainer {
+    /// Prepares `iterations` steps of training `initial` on the dataset's training views.
+    pub fn new(
+        initial: &AnchorModel,
+        data: &Dataset,
+        iterations: u32,
+        background: [f32; 3],
+        seed: u64,
+    ) -> Result<Self> {
+        if initial.is_empty() || !initial.is_consistent() {
+            bail!("the initial anchor model is empty or inconsistent");
+        }
+        if data.train.is_empty() {
+            bail!("the dataset has no training views");
+        }
+        let device = Device::flex();
+        let (n, f, k) = (initial.len(), initial.feature_dim, initial.offsets_per_anchor);
+        let positions: Vec<f32> = initial.positions.iter().flatten().copied().collect();
+        let scaling: Vec<f32> = initial.scaling.iter().flatten().copied().collect();
+        let mut params = Vec::with_capacity(PARAMETERS);
+        params.extend([
+            host_tensor(&initial.features, [n, f], &device),
+            host_tensor(&scaling, [n, 6], &device),
+            host_tensor(&initial.offsets, [n, 3 * k], &device),
+        ]);
+        for m in [&initial.opacity, &initial.color, &initial.covariance] {
+            params.extend(mlp_tensors(m, &device));
+        }
+        let views = data
+            .train
+            .iter()
+            .map(|v| {
+                let (w, h) = (v.image.width as usize, v.image.height as usize);
+                (v.camera, Tensor::from_data(TensorData::new(v.image.data.clone(), [h, w, 3]), &device))
+            })
+            .collect();
+        Ok(Self {
+            positions: host_tensor(&positions, [n, 3], &device),
+            moments: params.iter().map(|p| (p.zeros_like(), p.zeros_like())).collect(),
+            params,
+            shape: [n, f, k],
+            masks: initial.masks.clone(),
+            views,
+            background,
+            extent: data.normalization.scale,
+            rng: SplitMix64(seed),
+            iteration: 0,
+            iterations,
+        })
+    }
+
+    /// The learning rate of parameter `i` at the current iteration.
+    fn rate(&self, i: usize) -> f32 {
+        let group = match i {
+            0..3 => i,
+            _ => 3 + (i - 3) / 4,
+        };
+        let [start, end] = RATES[group];
+        let t = self.iteration as f32 / self.iterations.max(1) as f32;
+        let rate = (start.ln() * (1.0 - t) + end.ln() * t).exp();
+        if group == 2 { rate * self.extent } else { rate }
+    }
+
+    /// One step on a random training view.
+    pub fn step(&mut self) -> Result<AnchorStep> {
+        let [n, _, k] = self.shape;
+        let (camera, target) = self.views[(self.rng.next_u64() % self.views.len() as u64) as usize].clone();
+        let device = self.positions.device();
+        let tracked: Vec<Tensor<2>> = self.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
+        let center = Tensor::<2>::from_data(TensorData::new(camera.center().to_array().to_vec(), [1, 3]), &device);
+        let v = self.positions.clone() - center;
+        let d = (v.clone() * v.clone()).sum_dim(1).sqrt();
+        let input = Tensor::cat(vec![tracked[0].clone(), (v / d.clone()).autodiff(), d.autodiff()], 1);
+        let alpha = forward(input.clone(), &tracked[3..7]).tanh();
+        // The kept neural Gaussians: positive opacity and an open mask.
+        let alpha_host = tensor_values(alpha.clone().inner());
+        let kept: Vec<i64> = (0..n * k).filter(|&j| self.masks[j] && alpha_host[j] > 0.0).map(|j| j as i64).collect();
+        if kept.is_empty() {
+            bail!("no anchor gives a visible Gaussian at iteration {}", self.iteration);
+        }
+        let m = kept.len();
+        let index = Tensor::<1, Int>::from_data(TensorData::new(kept, [m]), &device);
+        let per_gaussian = |t: Tensor<2>, width: usize| t.reshape([n * k, width]).select(0, index.clone());
+        let per_anchor = |t: Tensor<2>, width: usize| {
+            per_gaussian(t.unsqueeze_dim::<3>(1).repeat_dim(1, k).reshape([n * k, width]), width)
+        };
+        let alpha = per_gaussian(alpha, 1).clamp(1e-6, 1.0 - 1e-6);
+        let color = per_gaussian(sigmoid(forward(input.clone(), &tracked[7..11])), 3);
+        let cov = per_gaussian(forward(input, &tracked[11..15]), 7);
+        let scaling = per_anchor(tracked[1].clone(), 6);
+        let anchors = per_anchor(self.positions.clone().autodiff(), 3);
+        let offsets = per_gaussian(tracked[2].clone(), 3);
+        let means = anchors + offsets * scaling.clone().slice([0..m, 0..3]).exp();
+        let log_scales = scaling.slice([0..m, 3..6]) + log_sigmoid(cov.clone().slice([0..m, 0..3]));
+        let rotations = cov.slice([0..m, 3..7]);
+        let opacity_logits = (alpha.clone() / (alpha.neg() + 1.0)).log().reshape([m]);
+        let sh = ((color - 0.5) / SH_C0).reshape([m, 1, 3]);
+        let probe = Tensor::<1>::zeros([m], &device).autodiff();
+        let view = SplatView::full(camera, RenderOptions { background: self.background, ..Default::default() });
+        let image = render(means, log_scales.clone(), rotations, opacity_logits, sh, probe, view);
+        let target = target.autodiff();
+        let l1 = (image.clone() - target.clone()).abs().mean();
+        let mse = (image.clone().inner() - target.clone().inner()).powi_scalar(2).mean();
+        let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
+        let structural = ssim(to_nchw(image), to_nchw(target), SsimConvention::ZeroPadded);
+        let volume = log_scales.sum_dim(1).exp().mean();
+        let loss = l1 * 0.8 + (structural.neg() + 1.0) * 0.2 + volume * VOLUME_WEIGHT;
+        let grads = loss.backward();
+        let loss_value = tensor_values(loss.inner())[0];
+        if !loss_value.is_finite() {
+            bail!("anchor training diverged at iteration {}: the loss is {loss_value}", self.iteration);
+        }
+        for (i, t) in tracked.iter().enumerate() {
+            let grad = t.grad(&grads).unwrap_or_else(|| self.params[i].zeros_like());
+            let rate = self.rate(i);
+            let (first, second) = &mut self.moments[i];
+            self.params[i] = self.params[i].clone() - direction(grad, first, second, self.iteration + 1) * rate;
+        }
+        self.iteration += 1;
+        Ok(AnchorStep { loss: loss_value, psnr: -10.0 * tensor_values(mse)[0].log10(), gaussians: m })
+    }
+
+    /// The current model, as a decoder holds it.
+    pub fn model(&self) -> AnchorModel {
+        let [_, f, k] = self.shape;
+        let rows = |i: usize| tensor_values(self.params[i].clone());
+        let positions = tensor_values(self.positions.clone());
+        let scaling = rows(1);
+        AnchorModel {
+            feature_dim: f,
+            offsets_per_anchor: k,
+            positions: positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            features: rows(0),
+            scaling: scaling.chunks_exact(6).map(|c| [c[0], c[1], c[2], c[3], c[4], c[5]]).collect(),
+            offsets: rows(2),
+            masks: self.masks.clone(),
+            opacity: mlp_of(&self.params[3..7]),
+            color: mlp_of(&self.params[7..11]),
+            covariance: mlp_of(&self.params[11..15]),
+        }
+    }
+}
