@@ -18,7 +18,9 @@ use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings}
 use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
-use pwgs_encoder::session::{ImportJob, Orbit, SceneJob, StreamOptions, encode_scene, import_ply};
+use pwgs_encoder::session::{
+    AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions, encode_scene, import_ply, train_anchor_scene,
+};
 use pwgs_encoder::train::wrapper_stage::DEFAULT_CROPS_PER_VIEW;
 use pwgs_encoder::train::{TrainConfig, WdFeatures, WrapperTraining};
 
@@ -79,6 +81,9 @@ enum Base {
     /// Plain 3D Gaussians (position, scale, rotation, opacity, SH).
     #[value(name = "3dgs")]
     ThreeDgs,
+    /// Anchors whose MLPs give each view's Gaussians. Work in progress (issue 15): trains for
+    /// pixels and evaluates (--eval, --report); it has no stream format yet.
+    Anchor,
 }
 
 #[derive(Args)]
@@ -117,6 +122,15 @@ struct EncodeArgs {
     /// Base representation.
     #[arg(long, value_enum, default_value = "3dgs")]
     base: Base,
+    /// With --base anchor: the anchors' feature length.
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u16).range(1..=256))]
+    anchor_features: u16,
+    /// With --base anchor: neural Gaussians per anchor.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u16).range(1..=64))]
+    anchor_offsets: u16,
+    /// With --base anchor: the anchors' voxel edge, as a fraction of the scene's scale.
+    #[arg(long, default_value_t = 0.005, value_parser = parse_positive)]
+    voxel: f32,
     /// Training iterations (0: evaluate the initialization).
     #[arg(long, default_value_t = 3000)]
     iters: u32,
@@ -233,6 +247,13 @@ fn parse_rate_pair(s: &str) -> Result<[f32; 2], String> {
     }
 }
 
+fn parse_positive(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a finite number > 0")),
+    }
+}
+
 fn parse_weight(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
@@ -331,9 +352,44 @@ impl EncodeArgs {
         self.output.clone().map(|path| StreamOptions { path, quality: self.quality, target_bytes: self.target_bytes })
     }
 
+    fn metric_settings(&self) -> SuiteSettings {
+        SuiteSettings {
+            weights: self.weight_dirs(),
+            wd_log2_sigma: self.eval_wd_log2_sigma,
+            lpips_input: LpipsInput::Official,
+        }
+    }
+
     /// Where weight files are searched: --weights, then the defaults.
     fn weight_dirs(&self) -> Vec<PathBuf> {
         self.weights.iter().cloned().chain(default_dirs()).collect()
+    }
+
+    /// `--base anchor`: the anchor training job, refusing what the anchor base cannot do yet.
+    fn anchor_job(&self, scene: &Path) -> Result<AnchorJob> {
+        let unsupported = [
+            (self.output.is_some(), "-o (the anchor base has no stream format yet)"),
+            (self.wrapper.wrapper, "--wrapper"),
+            (self.init_ply.is_some(), "--init-ply"),
+            (self.export_ply.is_some(), "--export-ply"),
+        ];
+        if let Some((_, what)) = unsupported.iter().find(|(set, _)| *set) {
+            bail!("--base anchor does not support {what} yet (issue 15); it trains and evaluates (--eval, --report)");
+        }
+        Ok(AnchorJob {
+            scene: scene.to_path_buf(),
+            load: self.load.options(),
+            iterations: self.iters,
+            feature_dim: usize::from(self.anchor_features),
+            offsets_per_anchor: usize::from(self.anchor_offsets),
+            relative_voxel: self.voxel,
+            background: self.load.background,
+            seed: self.seed,
+            eval: self.eval.clone(),
+            eval_metrics: self.eval_metrics.clone(),
+            metric_settings: self.metric_settings(),
+            report: self.report.clone(),
+        })
     }
 
     /// `--from-ply`: the import job.
@@ -384,11 +440,7 @@ impl EncodeArgs {
             export_ply: self.export_ply.clone(),
             eval: self.eval.clone(),
             eval_metrics: self.eval_metrics.clone(),
-            metric_settings: SuiteSettings {
-                weights: self.weight_dirs(),
-                wd_log2_sigma: self.eval_wd_log2_sigma,
-                lpips_input: LpipsInput::Official,
-            },
+            metric_settings: self.metric_settings(),
             report: self.report.clone(),
         })
     }
@@ -397,6 +449,9 @@ impl EncodeArgs {
 fn encode(args: EncodeArgs) -> Result<()> {
     match (&args.from_ply, &args.scene) {
         (Some(ply), _) => import_ply(&args.import_job(ply)?).map(drop),
+        (None, Some(scene)) if matches!(args.base, Base::Anchor) => {
+            train_anchor_scene(&args.anchor_job(scene)?).map(drop)
+        }
         (None, Some(scene)) => encode_scene(args.scene_job(scene)?).map(drop),
         (None, None) => unreachable!("clap requires a scene or --from-ply"),
     }

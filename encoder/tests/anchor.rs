@@ -46,3 +46,32 @@ fn anchors_learn_the_generated_scene() {
     );
     assert!(after > before + 4.0, "training gained only {:.2} dB", after - before);
 }
+
+#[test]
+fn pwenc_trains_and_evaluates_the_anchor_base() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let pwenc = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().unwrap();
+    let out = pwenc(&["generate-scene", &dir("scene"), "--width", "48", "--height", "36", "--views", "9"]);
+    assert!(out.status.success());
+    let common = [dir("scene"), "--base".into(), "anchor".into(), "--iters".into(), "20".into()];
+    let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
+    let (eval, report) = (dir("eval"), dir("r.json"));
+    args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "--eval", &eval, "--report", &report]);
+    let out = pwenc(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!((report["base"].as_str(), report["iterations"].as_u64()), (Some("anchor"), Some(20)));
+    assert!(report["anchors"].as_u64().unwrap() > 0);
+    assert!(report["mean"]["psnr"].as_f64().unwrap() > 5.0);
+    assert!(std::path::Path::new(&eval).join("view_008.png").is_file());
+
+    // What the anchor base cannot do yet is refused before any training.
+    let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
+    let stream = dir("s.pwb");
+    args.extend(["-o", &stream]);
+    let out = pwenc(&args);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no stream format yet"));
+    assert!(!std::path::Path::new(&stream).exists());
+}

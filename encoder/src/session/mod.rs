@@ -3,6 +3,7 @@
 //! checks its outputs before any work, writes every file atomically, and reports what it
 //! wrote as JSON-ready summaries.
 
+mod anchor;
 mod import;
 mod scene;
 
@@ -17,6 +18,7 @@ use serde::Serialize;
 
 use crate::compress::{Compressed, QuantizerSettings, StreamContext, compress_to_size};
 
+pub use anchor::{AnchorJob, AnchorReport, train_anchor_scene};
 pub use import::{ImportJob, ImportReport, Orbit, import_ply};
 pub use scene::{Report, SceneJob, encode_scene};
 
