@@ -3,7 +3,7 @@
 //! a [`MetricSuite`]), optionally save the renders.
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -16,7 +16,7 @@ use serde::Serialize;
 use crate::metrics::image_tensor::image_tensor;
 use crate::metrics::psnr::psnr;
 use crate::metrics::ssim::{SsimConvention, ssim};
-use crate::metrics::suite::MetricSuite;
+use crate::metrics::suite::{Metric, MetricSuite, SuiteSettings};
 
 /// Quality of one rendered test view.
 #[derive(Debug, Clone, Serialize)]
@@ -54,7 +54,7 @@ impl MeanScore {
 }
 
 /// A suite's scores as `  NAME value` pairs for a log line (empty without a suite).
-pub fn describe(metrics: &BTreeMap<String, f64>) -> String {
+fn describe(metrics: &BTreeMap<String, f64>) -> String {
     metrics.iter().map(|(k, v)| format!("  {} {v:.4}", k.to_uppercase())).collect()
 }
 
@@ -100,4 +100,54 @@ pub fn evaluate(
             })
         })
         .collect()
+}
+
+/// Where a job scores its test views, and with which metrics besides PSNR and SSIM.
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// The renders and, in `gt/`, the ground truth as training saw it.
+    pub dir: PathBuf,
+    pub metrics: Vec<Metric>,
+    pub settings: SuiteSettings,
+}
+
+/// An evaluation ready to run: its metrics' networks loaded, so that missing weights stop a
+/// job before it trains rather than after.
+pub struct Evaluation<'a> {
+    options: &'a EvalOptions,
+    suite: Option<MetricSuite>,
+}
+
+impl<'a> Evaluation<'a> {
+    pub fn prepare(options: &'a EvalOptions) -> Result<Self> {
+        let suite = match options.metrics.is_empty() {
+            true => None,
+            false => Some(MetricSuite::load(&options.metrics, options.settings.clone())?),
+        };
+        Ok(Self { options, suite })
+    }
+
+    /// Scores `scene` on the test views, printing a line per view and the mean.
+    pub fn run(&self, scene: &Scene, data: &Dataset) -> Result<(Vec<ViewScore>, MeanScore)> {
+        let views = evaluate(scene, data, Some(&self.options.dir), self.suite.as_ref())?;
+        for v in &views {
+            println!(
+                "{:<24} PSNR {:6.2} dB  SSIM {:.4}{}  render {:.3} s",
+                v.name,
+                v.psnr,
+                v.ssim,
+                describe(&v.metrics),
+                v.render_seconds
+            );
+        }
+        let mean = MeanScore::of(&views);
+        println!(
+            "mean over {} test views: PSNR {:.2} dB, SSIM {:.4}{}",
+            views.len(),
+            mean.psnr,
+            mean.ssim,
+            describe(&mean.metrics)
+        );
+        Ok((views, mean))
+    }
 }

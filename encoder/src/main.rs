@@ -12,6 +12,7 @@ use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::wrap::MAX_WIDTH;
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
+use pwgs_encoder::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};
@@ -352,12 +353,17 @@ impl EncodeArgs {
         self.output.clone().map(|path| StreamOptions { path, quality: self.quality, target_bytes: self.target_bytes })
     }
 
-    fn metric_settings(&self) -> SuiteSettings {
-        SuiteSettings {
-            weights: self.weight_dirs(),
-            wd_log2_sigma: self.eval_wd_log2_sigma,
-            lpips_input: LpipsInput::Official,
-        }
+    /// `--eval` with its metrics, when given.
+    fn eval_options(&self) -> Option<EvalOptions> {
+        self.eval.clone().map(|dir| EvalOptions {
+            dir,
+            metrics: self.eval_metrics.clone(),
+            settings: SuiteSettings {
+                weights: self.weight_dirs(),
+                wd_log2_sigma: self.eval_wd_log2_sigma,
+                lpips_input: LpipsInput::Official,
+            },
+        })
     }
 
     /// Where weight files are searched: --weights, then the defaults.
@@ -385,9 +391,7 @@ impl EncodeArgs {
             relative_voxel: self.voxel,
             background: self.load.background,
             seed: self.seed,
-            eval: self.eval.clone(),
-            eval_metrics: self.eval_metrics.clone(),
-            metric_settings: self.metric_settings(),
+            eval: self.eval_options(),
             report: self.report.clone(),
         })
     }
@@ -438,9 +442,7 @@ impl EncodeArgs {
             config,
             stream: self.stream(),
             export_ply: self.export_ply.clone(),
-            eval: self.eval.clone(),
-            eval_metrics: self.eval_metrics.clone(),
-            metric_settings: self.metric_settings(),
+            eval: self.eval_options(),
             report: self.report.clone(),
         })
     }

@@ -13,8 +13,7 @@ use serde::Serialize;
 use super::{check_outputs, write_report};
 use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::train::AnchorTrainer;
-use crate::evaluate::{MeanScore, ViewScore, describe, evaluate};
-use crate::metrics::suite::{Metric, MetricSuite, SuiteSettings};
+use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 
 /// An anchor training run.
 #[derive(Debug, Clone)]
@@ -28,9 +27,7 @@ pub struct AnchorJob {
     pub relative_voxel: f32,
     pub background: [f32; 3],
     pub seed: u64,
-    pub eval: Option<PathBuf>,
-    pub eval_metrics: Vec<Metric>,
-    pub metric_settings: SuiteSettings,
+    pub eval: Option<EvalOptions>,
     pub report: Option<PathBuf>,
 }
 
@@ -54,11 +51,8 @@ pub struct AnchorReport {
 }
 
 pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
-    check_outputs(&job.report, &job.eval)?;
-    let suite = match (&job.eval, job.eval_metrics.is_empty()) {
-        (Some(_), false) => Some(MetricSuite::load(&job.eval_metrics, job.metric_settings.clone())?),
-        _ => None,
-    };
+    check_outputs(&job.report, job.eval.iter().map(|e| &e.dir))?;
+    let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let data =
         load_scene(&job.scene, &job.load).with_context(|| format!("cannot load the scene {}", job.scene.display()))?;
     let points = data.points.as_ref().context("the anchor base starts from the scene's SfM points; it has none")?;
@@ -96,22 +90,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         frame: data.normalization.frame(),
         background: job.background,
     };
-    let (views, mean) = match &job.eval {
-        Some(dir) => {
-            let views = evaluate(&scene, &data, Some(dir), suite.as_ref())?;
-            for v in &views {
-                println!("{:<24} PSNR {:6.2} dB  SSIM {:.4}{}", v.name, v.psnr, v.ssim, describe(&v.metrics));
-            }
-            let mean = MeanScore::of(&views);
-            println!(
-                "mean over {} test views: PSNR {:.2} dB, SSIM {:.4}{}",
-                views.len(),
-                mean.psnr,
-                mean.ssim,
-                describe(&mean.metrics)
-            );
-            (views, Some(mean))
-        }
+    let (views, mean) = match &evaluation {
+        Some(e) => e.run(&scene, &data).map(|(views, mean)| (views, Some(mean)))?,
         None => (Vec::new(), None),
     };
     let first = &data.train[0].image;

@@ -18,9 +18,8 @@ use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
 use crate::compress::StreamContext;
-use crate::evaluate::{MeanScore, ViewScore, describe, evaluate};
+use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::init::initial_gaussians;
-use crate::metrics::suite::{Metric, MetricSuite, SuiteSettings};
 use crate::synthesis::{QuantizationSample, choose_quantization};
 use crate::train::{TrainConfig, TrainSummary, Trainer, train};
 
@@ -35,11 +34,8 @@ pub struct SceneJob {
     pub stream: Option<StreamOptions>,
     /// Write the trained Gaussians as an INRIA PLY.
     pub export_ply: Option<PathBuf>,
-    /// Render the test views here and score them.
-    pub eval: Option<PathBuf>,
-    /// Metrics scored on the test views besides PSNR and SSIM (LPIPS, DISTS, WD, ...).
-    pub eval_metrics: Vec<Metric>,
-    pub metric_settings: SuiteSettings,
+    /// Render the test views and score them.
+    pub eval: Option<EvalOptions>,
     pub report: Option<PathBuf>,
 }
 
@@ -63,12 +59,8 @@ pub struct Report {
 
 pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let files = job.stream.iter().map(|s| &s.path).chain(&job.report).chain(&job.export_ply);
-    check_outputs(files, &job.eval)?;
-    // The metrics' networks load before training, so that missing weights stop the run early.
-    let suite = match (&job.eval, job.eval_metrics.is_empty()) {
-        (Some(_), false) => Some(MetricSuite::load(&job.eval_metrics, job.metric_settings.clone())?),
-        _ => None,
-    };
+    check_outputs(files, job.eval.iter().map(|e| &e.dir))?;
+    let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let scene = &job.scene;
     let start = Instant::now();
     let data = load_scene(scene, &job.load).with_context(|| format!("cannot load the scene {}", scene.display()))?;
@@ -152,29 +144,8 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
             &trained
         }
     };
-    let (views, mean) = match &job.eval {
-        Some(dir) => {
-            let views = evaluate(shown, &data, Some(dir), suite.as_ref())?;
-            for v in &views {
-                println!(
-                    "{:<24} PSNR {:6.2} dB  SSIM {:.4}{}  render {:.3} s",
-                    v.name,
-                    v.psnr,
-                    v.ssim,
-                    describe(&v.metrics),
-                    v.render_seconds
-                );
-            }
-            let mean = MeanScore::of(&views);
-            println!(
-                "mean over {} test views: PSNR {:.2} dB, SSIM {:.4}{}",
-                views.len(),
-                mean.psnr,
-                mean.ssim,
-                describe(&mean.metrics)
-            );
-            (views, Some(mean))
-        }
+    let (views, mean) = match &evaluation {
+        Some(e) => e.run(shown, &data).map(|(views, mean)| (views, Some(mean)))?,
         None => (Vec::new(), None),
     };
     let report = Report {
