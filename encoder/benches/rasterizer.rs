@@ -61,8 +61,18 @@ fn main() {
     println!("threads: {}", rayon::current_num_threads());
     let scalar = RenderOptions { blend: BlendPath::Scalar, ..options };
     println!(
-        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>7} {:>11} {:>12} {:>11}",
-        "gaussians", "image", "visible", "scalar s", "forward s", "ratio", "backward s", "blend pairs", "pairs/s fwd"
+        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>12} {:>11}",
+        "gaussians",
+        "image",
+        "visible",
+        "fwd scalar",
+        "fwd simd",
+        "ratio",
+        "bwd scalar",
+        "bwd simd",
+        "ratio",
+        "blend pairs",
+        "pairs/s fwd"
     );
     for &(width, height) in &[(504u32, 378u32), (1008, 756)] {
         let cam = camera(width, height);
@@ -72,13 +82,15 @@ fn main() {
             let (forward_scalar, _) = time(runs, || rasterize(&g, &cam, &scalar));
             let (forward, rendered) = time(runs, || rasterize(&g, &cam, &options));
             let weights = vec![1.0f32; rendered.color.data.len()];
+            let (backward_scalar, _) = time(runs, || backward(&g, &cam, &scalar, &rendered, &weights));
             let (backward_s, _) = time(runs, || backward(&g, &cam, &options, &rendered, &weights));
             let pairs = blend_pairs(&rendered);
             println!(
-                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>7.2} {backward_s:>11.4} {pairs:>12} {:>11.3e}",
+                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
                 format!("{width}x{height}"),
                 rendered.splats.len(),
                 forward_scalar / forward,
+                backward_scalar / backward_s,
                 pairs as f64 / forward
             );
         }

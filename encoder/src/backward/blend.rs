@@ -9,7 +9,7 @@
 
 use pwgs_decoder::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
 use pwgs_decoder::raster::project::Splat;
-use pwgs_decoder::raster::{Cutoff, RenderOptions, Rendered};
+use pwgs_decoder::raster::{BlendPath, Cutoff, RenderOptions, Rendered};
 use rayon::prelude::*;
 
 /// Gradient of the loss with respect to one splat's screen-space parameters.
@@ -37,7 +37,7 @@ impl SplatGrad {
 
 /// A [`SplatGrad`] in f32: mean (2), conic (3), opacity, color (3).
 #[derive(Debug, Clone, Copy, Default)]
-struct EntryGrad([f32; 9]);
+pub(super) struct EntryGrad([f32; 9]);
 
 impl From<&SplatGrad> for EntryGrad {
     fn from(g: &SplatGrad) -> Self {
@@ -55,7 +55,7 @@ impl EntryGrad {
 }
 
 /// d alpha / d(opacity * falloff) at a sample, following the forward's clamp and cutoff.
-fn alpha_slope(s: &Splat, falloff: f64, options: &RenderOptions) -> f64 {
+pub(super) fn alpha_slope(s: &Splat, falloff: f64, options: &RenderOptions) -> f64 {
     let raw = s.opacity as f64 * falloff;
     let clamp_slope = if raw < options.alpha_max as f64 { 1.0 } else { 0.0 };
     match options.cutoff {
@@ -105,71 +105,79 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
         slices.push(head);
         rest = tail;
     }
-    slices.into_par_iter().enumerate().for_each(|(t, grads)| {
-        let entries = bins.tile(t);
-        let [x0, x1, y0, y1] = bins.tile_rect(t);
-        let tw = (x1 - x0) as usize;
-        let mut pixels: Vec<PixelState> = Vec::with_capacity(tw * (y1 - y0) as usize);
-        for py in y0..y1 {
-            for px in x0..x1 {
-                let p = bins.pixel_index(px, py);
-                let v = [v_color[p * 3], v_color[p * 3 + 1], v_color[p * 3 + 2]].map(f64::from);
-                let t_final = rendered.transmittance[p] as f64;
-                pixels.push(PixelState {
-                    v_color: v,
-                    transmittance: t_final,
-                    t_final,
-                    bg_term: (0..3).map(|c| options.background[c] as f64 * v[c]).sum(),
-                    behind: [0.0; 3],
-                    last: rendered.last_contributor[p] as usize,
-                });
-            }
-        }
-        let deepest = pixels.iter().map(|p| p.last).max().unwrap_or(0);
-        for k in (0..deepest).rev() {
-            let s = &rendered.splats[entries[k] as usize];
-            let [bx0, bx1, by0, by1] = s.bbox;
-            let [a, b, c] = s.conic.map(f64::from);
-            let opacity = s.opacity as f64;
-            let color = s.color.map(f64::from);
-            let mut g = SplatGrad::default();
-            for py in by0.max(y0)..by1.min(y1) {
-                for px in bx0.max(x0)..bx1.min(x1) {
-                    let state = &mut pixels[(py - y0) as usize * tw + (px - x0) as usize];
-                    if k >= state.last {
-                        continue;
-                    }
-                    let dx = s.mean[0] - (px as f32 + 0.5);
-                    let dy = s.mean[1] - (py as f32 + 0.5);
-                    let Some(sample) = splat_alpha(s, dx, dy, options) else { continue };
-                    let alpha = sample.alpha as f64;
-                    let falloff = sample.falloff as f64;
-                    let ra = 1.0 / (1.0 - alpha);
-                    state.transmittance *= ra;
-                    let trans = state.transmittance;
-                    let mut v_alpha = -state.t_final * ra * state.bg_term;
-                    for ch in 0..3 {
-                        g.color[ch] += alpha * trans * state.v_color[ch];
-                        v_alpha += (color[ch] * trans - state.behind[ch] * ra) * state.v_color[ch];
-                        state.behind[ch] += color[ch] * alpha * trans;
-                    }
-                    let v_raw = v_alpha * alpha_slope(s, falloff, options);
-                    g.opacity += falloff * v_raw;
-                    let v_sigma = -opacity * falloff * v_raw;
-                    let (dx, dy) = (dx as f64, dy as f64);
-                    g.conic[0] += 0.5 * dx * dx * v_sigma;
-                    g.conic[1] += dx * dy * v_sigma;
-                    g.conic[2] += 0.5 * dy * dy * v_sigma;
-                    g.mean[0] += (a * dx + b * dy) * v_sigma;
-                    g.mean[1] += (b * dx + c * dy) * v_sigma;
-                }
-            }
-            grads[k] = EntryGrad::from(&g);
-        }
+    slices.into_par_iter().enumerate().for_each(|(t, grads)| match options.blend {
+        BlendPath::Scalar => tile_backward(t, rendered, options, v_color, grads),
+        BlendPath::Vectorized => super::blend_simd::tile_backward(t, rendered, options, v_color, grads),
     });
     let mut totals = vec![SplatGrad::default(); rendered.splats.len()];
     for (entry, grad) in bins.entries.iter().zip(&per_entry) {
         totals[*entry as usize].add(&grad.widen());
     }
     totals
+}
+
+/// The backward walk through tile `t`, one pixel at a time (the reference): each entry's
+/// gradient into `grads`, indexed like the tile's list.
+fn tile_backward(t: usize, rendered: &Rendered, options: &RenderOptions, v_color: &[f32], grads: &mut [EntryGrad]) {
+    let bins = &rendered.bins;
+    let entries = bins.tile(t);
+    let [x0, x1, y0, y1] = bins.tile_rect(t);
+    let tw = (x1 - x0) as usize;
+    let mut pixels: Vec<PixelState> = Vec::with_capacity(tw * (y1 - y0) as usize);
+    for py in y0..y1 {
+        for px in x0..x1 {
+            let p = bins.pixel_index(px, py);
+            let v = [v_color[p * 3], v_color[p * 3 + 1], v_color[p * 3 + 2]].map(f64::from);
+            let t_final = rendered.transmittance[p] as f64;
+            pixels.push(PixelState {
+                v_color: v,
+                transmittance: t_final,
+                t_final,
+                bg_term: (0..3).map(|c| options.background[c] as f64 * v[c]).sum(),
+                behind: [0.0; 3],
+                last: rendered.last_contributor[p] as usize,
+            });
+        }
+    }
+    let deepest = pixels.iter().map(|p| p.last).max().unwrap_or(0);
+    for k in (0..deepest).rev() {
+        let s = &rendered.splats[entries[k] as usize];
+        let [bx0, bx1, by0, by1] = s.bbox;
+        let [a, b, c] = s.conic.map(f64::from);
+        let opacity = s.opacity as f64;
+        let color = s.color.map(f64::from);
+        let mut g = SplatGrad::default();
+        for py in by0.max(y0)..by1.min(y1) {
+            for px in bx0.max(x0)..bx1.min(x1) {
+                let state = &mut pixels[(py - y0) as usize * tw + (px - x0) as usize];
+                if k >= state.last {
+                    continue;
+                }
+                let dx = s.mean[0] - (px as f32 + 0.5);
+                let dy = s.mean[1] - (py as f32 + 0.5);
+                let Some(sample) = splat_alpha(s, dx, dy, options) else { continue };
+                let alpha = sample.alpha as f64;
+                let falloff = sample.falloff as f64;
+                let ra = 1.0 / (1.0 - alpha);
+                state.transmittance *= ra;
+                let trans = state.transmittance;
+                let mut v_alpha = -state.t_final * ra * state.bg_term;
+                for ch in 0..3 {
+                    g.color[ch] += alpha * trans * state.v_color[ch];
+                    v_alpha += (color[ch] * trans - state.behind[ch] * ra) * state.v_color[ch];
+                    state.behind[ch] += color[ch] * alpha * trans;
+                }
+                let v_raw = v_alpha * alpha_slope(s, falloff, options);
+                g.opacity += falloff * v_raw;
+                let v_sigma = -opacity * falloff * v_raw;
+                let (dx, dy) = (dx as f64, dy as f64);
+                g.conic[0] += 0.5 * dx * dx * v_sigma;
+                g.conic[1] += dx * dy * v_sigma;
+                g.conic[2] += 0.5 * dy * dy * v_sigma;
+                g.mean[0] += (a * dx + b * dy) * v_sigma;
+                g.mean[1] += (b * dx + c * dy) * v_sigma;
+            }
+        }
+        grads[k] = EntryGrad::from(&g);
+    }
 }

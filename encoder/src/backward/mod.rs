@@ -7,6 +7,7 @@
 //! intermediates are recomputed, per visible Gaussian, by the decoder's own projection.
 
 pub mod blend;
+mod blend_simd;
 pub mod projection;
 pub mod sh;
 
