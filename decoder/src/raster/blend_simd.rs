@@ -13,7 +13,8 @@ use super::tiles::TileBins;
 use super::{Cutoff, RenderOptions, TILE_SIZE, Window};
 use crate::portable_math::{EXP_F32_COEFFICIENTS, EXP_F32_HI, EXP_F32_LN2_HI, EXP_F32_LN2_LO, EXP_F32_LO, ROUND_F32};
 
-const LANES: usize = 8;
+/// Pixels per vector: a tile row is two chunks.
+pub const LANES: usize = 8;
 const CHUNKS_PER_ROW: usize = TILE_SIZE as usize / LANES;
 const CHUNKS: usize = TILE_SIZE as usize * CHUNKS_PER_ROW;
 
@@ -28,6 +29,40 @@ fn exp8(x: f32x8) -> f32x8 {
     let scaled = f32x8::from_bits(p.to_bits() + shift);
     let scaled = x.simd_gt(f32x8::splat(EXP_F32_HI)).select(f32x8::splat(f32::INFINITY), scaled);
     x.simd_lt(f32x8::splat(EXP_F32_LO)).select(f32x8::splat(0.0), scaled)
+}
+
+/// [`super::blend::splat_alpha`] at eight pixels of a row.
+#[derive(Debug, Clone, Copy)]
+pub struct AlphaLanes {
+    pub alpha: f32x8,
+    pub falloff: f32x8,
+    /// All ones in the lanes where the splat contributes (its alpha reaches alpha_min).
+    pub contributes: f32x8,
+}
+
+/// The offsets from splat `s`'s center of the eight pixel centers from column `start` on, as
+/// the scalar path computes each: `mean_x - (px + 0.5)`.
+pub fn chunk_dx(s: &Splat, start: u32) -> f32x8 {
+    f32x8::splat(s.mean[0]) - (f32x8::splat(start as f32) + f32x8::new(LANE_CENTERS))
+}
+
+/// [`super::blend::splat_alpha`] on eight lanes, operation for operation: offsets `dx` (see
+/// [`chunk_dx`]) on a row at offset `dy`.
+#[inline]
+pub fn splat_alpha8(s: &Splat, dx: f32x8, dy: f32, options: &RenderOptions) -> AlphaLanes {
+    let [l11, l21, l22] = s.cholesky;
+    let q = l22 * dy;
+    let p = f32x8::splat(l11) * dx + f32x8::splat(l21 * dy);
+    let falloff = exp8(f32x8::splat(-0.5) * (p * p + f32x8::splat(q * q)));
+    let raw = f32x8::splat(s.opacity) * falloff;
+    let alpha_min = options.projection.alpha_min as f32;
+    let contributes = !raw.simd_lt(f32x8::splat(alpha_min));
+    let mut alpha = raw.min(f32x8::splat(options.alpha_max));
+    if options.cutoff == Cutoff::Smooth {
+        let t = ((raw - f32x8::splat(alpha_min)) / f32x8::splat(SMOOTH_CUTOFF_BAND)).min(f32x8::splat(1.0));
+        alpha = alpha * t * t * (f32x8::splat(3.0) - f32x8::splat(2.0) * t);
+    }
+    AlphaLanes { alpha, falloff, contributes }
 }
 
 /// A tile's blending state.
@@ -47,7 +82,6 @@ const LANE_CENTERS: [f32; LANES] = [0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5];
 /// [`super::blend::blend_band`], vectorized.
 pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, mut band: Band) {
     let window = bins.window;
-    let alpha_min = options.projection.alpha_min as f32;
     let all = f32x8::splat(f32::from_bits(u32::MAX));
     let lane_index = i32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
     for tx in 0..bins.tiles_x {
@@ -80,12 +114,9 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
             if xa >= xb {
                 continue;
             }
-            let [l11, l21, l22] = s.cholesky;
             let contributor = i32x8::splat(k as i32 + 1);
             for py in by0.max(y0)..by1.min(y1) {
                 let dy = s.mean[1] - (py as f32 + 0.5);
-                let (l21dy, q) = (l21 * dy, l22 * dy);
-                let qq = f32x8::splat(q * q);
                 let row = (py - y0) as usize * CHUNKS_PER_ROW;
                 for c in ((xa - x0) as usize / LANES)..=((xb - 1 - x0) as usize / LANES) {
                     let i = row + c;
@@ -96,17 +127,8 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
                     if !active.any() {
                         continue;
                     }
-                    let dx = f32x8::splat(s.mean[0]) - (f32x8::splat(start as f32) + f32x8::new(LANE_CENTERS));
-                    let p = f32x8::splat(l11) * dx + f32x8::splat(l21dy);
-                    let falloff = exp8(f32x8::splat(-0.5) * (p * p + qq));
-                    let raw = f32x8::splat(s.opacity) * falloff;
-                    let valid = active & !raw.simd_lt(f32x8::splat(alpha_min));
-                    let mut alpha = raw.min(f32x8::splat(options.alpha_max));
-                    if options.cutoff == Cutoff::Smooth {
-                        let t =
-                            ((raw - f32x8::splat(alpha_min)) / f32x8::splat(SMOOTH_CUTOFF_BAND)).min(f32x8::splat(1.0));
-                        alpha = alpha * t * t * (f32x8::splat(3.0) - f32x8::splat(2.0) * t);
-                    }
+                    let AlphaLanes { alpha, contributes, .. } = splat_alpha8(s, chunk_dx(s, start), dy, options);
+                    let valid = active & contributes;
                     let trans = state.trans[i];
                     let next = trans * (f32x8::splat(1.0) - alpha);
                     let stop = valid & next.simd_le(f32x8::splat(options.transmittance_min));

@@ -2,10 +2,11 @@
 //! f64 operations as the scalar walk in [`super::blend`], lane by lane; each splat's
 //! gradient is summed per lane and the four lane sums are added in lane order at the end, so
 //! it differs from the scalar sum only by rounding (the tests bound it) and does not depend
-//! on the number of threads. Alpha and falloff come from the decoder's `splat_alpha`, as in
-//! the forward pass.
+//! on the number of threads. Alpha and falloff come from the forward pass's vector function
+//! (`splat_alpha8`, eight pixels at a time, the scalar `splat_alpha`'s bits).
 
-use pwgs_decoder::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
+use pwgs_decoder::raster::blend::SMOOTH_CUTOFF_BAND;
+use pwgs_decoder::raster::blend_simd::{LANES as CHUNK, chunk_dx, splat_alpha8};
 use pwgs_decoder::raster::{Cutoff, RenderOptions, Rendered, TILE_SIZE};
 use wide::f64x4;
 
@@ -121,7 +122,7 @@ pub(super) fn tile_backward(
         if xa >= xb {
             continue;
         }
-        let [a, b, c] = s.conic.map(f64::from).map(f64x4::splat);
+        let [a, b, c_conic] = s.conic.map(f64::from).map(f64x4::splat);
         let opacity = f64x4::splat(f64::from(s.opacity));
         let color = s.color.map(|v| f64x4::splat(f64::from(v)));
         let mut sums = Sums::default();
@@ -129,48 +130,49 @@ pub(super) fn tile_backward(
             let dy_f32 = s.mean[1] - (py as f32 + 0.5);
             let dy = f64x4::splat(f64::from(dy_f32));
             let row = (py - y0) as usize * QUADS_PER_ROW;
-            for q in ((xa - x0) as usize / LANES)..=((xb - 1 - x0) as usize / LANES) {
-                let i = row + q;
-                // Alpha per lane, from the same f32 function the forward pass uses.
-                let (mut alpha, mut falloff, mut dx, mut valid) =
-                    ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
-                for lane in 0..LANES {
-                    let px = x0 + (q * LANES + lane) as u32;
-                    if px < xa || px >= xb || k >= state.last[i][lane] {
+            for c in ((xa - x0) as usize / CHUNK)..=((xb - 1 - x0) as usize / CHUNK) {
+                // Alpha for eight pixels with the forward pass's own vector function.
+                let start = x0 + (c * CHUNK) as u32;
+                let lanes = splat_alpha8(s, chunk_dx(s, start), dy_f32, options);
+                let (alpha8, falloff8, contributes) =
+                    (lanes.alpha.to_array(), lanes.falloff.to_array(), lanes.contributes.to_bitmask());
+                let dx8 = chunk_dx(s, start).to_array();
+                for half in 0..CHUNK / LANES {
+                    let i = row + c * (CHUNK / LANES) + half;
+                    let mut valid = [0.0; LANES];
+                    for lane in 0..LANES {
+                        let j = half * LANES + lane;
+                        let px = start + j as u32;
+                        if px >= xa && px < xb && k < state.last[i][lane] && contributes & (1 << j) != 0 {
+                            valid[lane] = 1.0;
+                        }
+                    }
+                    let valid = f64x4::new(valid).simd_eq(one);
+                    if !valid.any() {
                         continue;
                     }
-                    let dx_f32 = s.mean[0] - (px as f32 + 0.5);
-                    if let Some(sample) = splat_alpha(s, dx_f32, dy_f32, options) {
-                        alpha[lane] = f64::from(sample.alpha);
-                        falloff[lane] = f64::from(sample.falloff);
-                        dx[lane] = f64::from(dx_f32);
-                        valid[lane] = 1.0;
+                    let widen = |v: &[f32; CHUNK]| f64x4::new([0, 1, 2, 3].map(|l| f64::from(v[half * LANES + l])));
+                    let (alpha, falloff, dx) = (widen(&alpha8), widen(&falloff8), widen(&dx8));
+                    let ra = one / (one - alpha);
+                    let trans = state.transmittance[i] * ra;
+                    state.transmittance[i] = valid.select(trans, state.transmittance[i]);
+                    let mut v_alpha = -state.t_final[i] * ra * state.bg_term[i];
+                    for ch in 0..3 {
+                        let vc = state.v_color[ch][i];
+                        sums.color[ch] += valid.select(alpha * trans * vc, zero);
+                        v_alpha += (color[ch] * trans - state.behind[ch][i] * ra) * vc;
+                        let behind = state.behind[ch][i] + color[ch] * alpha * trans;
+                        state.behind[ch][i] = valid.select(behind, state.behind[ch][i]);
                     }
+                    let v_raw = v_alpha * alpha_slope(opacity * falloff, options);
+                    sums.opacity += valid.select(falloff * v_raw, zero);
+                    let v_sigma = valid.select(-opacity * falloff * v_raw, zero);
+                    sums.conic[0] += f64x4::splat(0.5) * dx * dx * v_sigma;
+                    sums.conic[1] += dx * dy * v_sigma;
+                    sums.conic[2] += f64x4::splat(0.5) * dy * dy * v_sigma;
+                    sums.mean[0] += (a * dx + b * dy) * v_sigma;
+                    sums.mean[1] += (b * dx + c_conic * dy) * v_sigma;
                 }
-                let valid = f64x4::new(valid).simd_eq(one);
-                if !valid.any() {
-                    continue;
-                }
-                let (alpha, falloff, dx) = (f64x4::new(alpha), f64x4::new(falloff), f64x4::new(dx));
-                let ra = one / (one - alpha);
-                let trans = state.transmittance[i] * ra;
-                state.transmittance[i] = valid.select(trans, state.transmittance[i]);
-                let mut v_alpha = -state.t_final[i] * ra * state.bg_term[i];
-                for ch in 0..3 {
-                    let vc = state.v_color[ch][i];
-                    sums.color[ch] += valid.select(alpha * trans * vc, zero);
-                    v_alpha += (color[ch] * trans - state.behind[ch][i] * ra) * vc;
-                    let behind = state.behind[ch][i] + color[ch] * alpha * trans;
-                    state.behind[ch][i] = valid.select(behind, state.behind[ch][i]);
-                }
-                let v_raw = v_alpha * alpha_slope(opacity * falloff, options);
-                sums.opacity += valid.select(falloff * v_raw, zero);
-                let v_sigma = valid.select(-opacity * falloff * v_raw, zero);
-                sums.conic[0] += f64x4::splat(0.5) * dx * dx * v_sigma;
-                sums.conic[1] += dx * dy * v_sigma;
-                sums.conic[2] += f64x4::splat(0.5) * dy * dy * v_sigma;
-                sums.mean[0] += (a * dx + b * dy) * v_sigma;
-                sums.mean[1] += (b * dx + c * dy) * v_sigma;
             }
         }
         let g = SplatGrad {
