@@ -12,5 +12,6 @@ pub mod random_scene;
 pub mod raster;
 pub mod rgb_image;
 pub mod scene;
+pub mod splat_file;
 pub mod stream;
 pub mod wrapper;
