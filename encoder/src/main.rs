@@ -92,8 +92,9 @@ struct EncodeArgs {
     /// Scene folder (COLMAP, transforms.json or LLFF).
     #[arg(required_unless_present = "from_ply")]
     scene: Option<PathBuf>,
-    /// Compress a 3DGS model trained elsewhere (INRIA PLY) instead of training one.
-    #[arg(long, conflicts_with_all = ["scene", "init_ply", "eval"])]
+    /// Compress a 3DGS model trained elsewhere instead of training one: an INRIA PLY, a
+    /// `.splat` or an `.spz` (versions 2 and 3), by extension.
+    #[arg(long, visible_alias = "from", conflicts_with_all = ["scene", "init_ply", "eval"])]
     from_ply: Option<PathBuf>,
     /// Write the stream here.
     #[arg(short, long)]

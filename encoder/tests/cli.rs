@@ -136,4 +136,21 @@ fn compresses_an_imported_ply() {
     let out = pwenc(&["--from-ply", &path("in.ply")]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--output"));
+
+    // `--from` takes .splat and .spz files too: the stream holds their Gaussians.
+    use pwgs_decoder::splat_file::{SpzVersion, gaussians_to_splat_bytes, gaussians_to_spz_bytes};
+    std::fs::write(path("in.splat"), gaussians_to_splat_bytes(&model)).unwrap();
+    std::fs::write(path("in.spz"), gaussians_to_spz_bytes(&model, SpzVersion::V3)).unwrap();
+    for input in ["in.splat", "in.spz"] {
+        let out = pwenc(&["--from", &path(input), "-o", &path("other.pwb")]);
+        assert!(out.status.success(), "{input}: {}", String::from_utf8_lossy(&out.stderr));
+        let decoded = pwgs_decoder::stream::decode(&std::fs::read(path("other.pwb")).unwrap()).unwrap();
+        let expected = pwgs_decoder::splat_file::read_splat_file(std::path::Path::new(&path(input))).unwrap();
+        assert_eq!(decoded.header.sh_degree, expected.sh_degree, "{input}");
+        assert!(decoded.header.gaussian_count > 700, "{input}: {} Gaussians", decoded.header.gaussian_count);
+    }
+    std::fs::write(path("broken.spz"), b"not gzip").unwrap();
+    let out = pwenc(&["--from", &path("broken.spz"), "-o", &path("broken.pwb")]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("broken.spz"));
+    assert!(!std::path::Path::new(&path("broken.pwb")).exists());
 }

@@ -9,7 +9,7 @@ use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::scene::{Base, Scene};
 use serde::Serialize;
 
-use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
+use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};
 use crate::compress::StreamContext;
 use crate::fidelity::{orbit_cameras, renders};
 use crate::metrics::psnr::psnr;
@@ -52,7 +52,7 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
     let folders = job.orbit.iter().filter_map(|o| o.renders.as_ref());
     check_outputs([&job.stream.path].into_iter().chain(&job.report), folders)?;
     let ply = &job.ply;
-    let gaussians = read_ply(ply)?;
+    let gaussians = read_model(ply)?;
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
     let context = StreamContext::from_gaussians(&gaussians, job.background);
     let (compressed, stream) = write_stream(&gaussians, &context, &job.stream, None)?;

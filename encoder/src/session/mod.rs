@@ -136,6 +136,17 @@ fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
 }
 
 /// Reads an INRIA PLY, saying what had to be repaired.
+/// A model trained elsewhere: an INRIA PLY (see [`read_ply`]), or antimatter15's `.splat` or
+/// Niantic's `.spz` (see [`pwgs_decoder::splat_file`]), chosen by the file's extension.
+fn read_model(path: &Path) -> Result<Gaussians> {
+    let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some("splat" | "spz") => Ok(pwgs_decoder::splat_file::read_splat_file(path)?),
+        _ => read_ply(path),
+    }
+}
+
+/// An INRIA PLY, saying how many Gaussians with non-finite values were dropped.
 fn read_ply(path: &Path) -> Result<Gaussians> {
     let loaded = pwgs_decoder::ply::read_gaussians(path)?;
     if loaded.dropped_non_finite + loaded.clamped_opacities > 0 {
