@@ -16,7 +16,7 @@
 set -euo pipefail
 
 fuzz_dir=$(cd "$(dirname "$0")" && pwd)
-all_targets=(container entropy octree camera_json ply colmap_bin transforms decode)
+all_targets=(container entropy octree camera_json ply colmap_bin transforms splat_file decode)
 smoke=false seed=true build=true targets=()
 for arg in "$@"; do
     case "$arg" in

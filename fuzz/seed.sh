@@ -26,7 +26,7 @@ if [[ -z "${PWENC:-}" || -z "${PWDEC:-}" ]]; then
 fi
 
 rm -rf "$corpus"
-mkdir -p "$corpus"/{container,entropy,octree,decode,camera_json,ply,colmap_bin,transforms}
+mkdir -p "$corpus"/{container,entropy,octree,decode,camera_json,ply,colmap_bin,transforms,splat_file}
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 
@@ -145,6 +145,24 @@ points = [
 ]
 write("colmap_bin", "model", colmap(cameras, images, points))
 write("colmap_bin", "cameras-only", colmap(cameras, [], []))
+
+# splat_file: a selector byte (even: .splat, odd: .spz), then the file. Two .splat records;
+# SPZ versions 2 and 3 with two points of degree 0 and of degree 1 (attributes stored one
+# after the other: positions as 24-bit fixed point, alphas, colors, scales, rotations, SH).
+import gzip
+records = struct.pack("<3f3f4B4B", 0.1, -0.2, 1.5, 0.01, 0.02, 0.03, 200, 100, 50, 180, 200, 128, 128, 128)
+records += struct.pack("<3f3f4B4B", -1.0, 0.5, 2.0, 0.1, 0.1, 0.1, 10, 250, 30, 90, 128, 200, 60, 128)
+write("splat_file", "two-records", b"\x00" + records)
+def spz(version, degree):
+    n, rotation = 2, 3 if version == 2 else 4
+    coeffs = ((degree + 1) ** 2 - 1) * 3
+    header = struct.pack("<IIIBBBB", 0x5053474E, version, n, degree, 12, 0, 0)
+    body = bytes(range(9 * n)) + bytes([200, 40]) + bytes([128, 64, 200] * n) + bytes([100, 120, 140] * n)
+    body += bytes([128, 140, 100, 90][:rotation] * n) + bytes([128 + i % 7 for i in range(coeffs * n)])
+    return b"\x01" + gzip.compress(header + body, mtime=0)
+for version in (2, 3):
+    for degree in (0, 1):
+        write("splat_file", f"spz-v{version}-sh{degree}", spz(version, degree))
 PY
 
 echo "seeded $corpus:"
