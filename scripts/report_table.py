@@ -14,11 +14,14 @@ def row(label, path):
     r = json.loads(Path(path).read_text())
     mean = r.get("mean") or {}
     stream = r.get("stream") or {}
+    # A plain-base report nests its training figures; an anchor-base report (`--base anchor`)
+    # has them at the top level.
+    training = r.get("training") or {"iterations": r["iterations"], "seconds": r["training_seconds"]}
     cells = [
         label,
         f"{stream['bytes']:,}" if stream else "-",
-        f"{r['training']['iterations']:,}",
-        f"{r['training']['seconds']:.0f}",
+        f"{training['iterations']:,}",
+        f"{training['seconds']:.0f}",
     ]
     for key, fmt in [("dists", "{:.4f}"), ("lpips", "{:.4f}"), ("wd", "{:.3f}"), ("psnr", "{:.2f}")]:
         cells.append(fmt.format(mean[key]) if key in mean else "-")
