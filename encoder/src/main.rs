@@ -11,6 +11,7 @@ use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::wrap::MAX_WIDTH;
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+use pwgs_encoder::anchor::quantize::AnchorSteps;
 use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
 use pwgs_encoder::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
@@ -133,6 +134,14 @@ struct EncodeArgs {
     /// With --base anchor: the anchors' voxel edge, as a fraction of the scene's scale.
     #[arg(long, default_value_t = 0.005, value_parser = parse_positive)]
     voxel: f32,
+    /// With --base anchor: multiplies the quantization steps of the anchors' features, scales
+    /// and offsets (1: features and offsets 1/32, log scales 1/64).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    anchor_step_scale: f32,
+    /// With --base anchor: train without the quantization noise (the stream is rounded all
+    /// the same).
+    #[arg(long)]
+    no_quantization_noise: bool,
     /// Training iterations (0: evaluate the initialization).
     #[arg(long, default_value_t = 3000)]
     iters: u32,
@@ -375,13 +384,14 @@ impl EncodeArgs {
     /// `--base anchor`: the anchor training job, refusing what the anchor base cannot do yet.
     fn anchor_job(&self, scene: &Path) -> Result<AnchorJob> {
         let unsupported = [
-            (self.output.is_some(), "-o (the anchor base has no stream format yet)"),
             (self.wrapper.wrapper, "--wrapper"),
             (self.init_ply.is_some(), "--init-ply"),
             (self.export_ply.is_some(), "--export-ply"),
         ];
         if let Some((_, what)) = unsupported.iter().find(|(set, _)| *set) {
-            bail!("--base anchor does not support {what} yet (issue 15); it trains and evaluates (--eval, --report)");
+            bail!(
+                "--base anchor does not support {what} yet (issue 15); it trains, writes the stream (-o) and evaluates (--eval, --report)"
+            );
         }
         Ok(AnchorJob {
             scene: scene.to_path_buf(),
@@ -392,6 +402,9 @@ impl EncodeArgs {
             relative_voxel: self.voxel,
             background: self.load.background,
             seed: self.seed,
+            steps: AnchorSteps::default().scaled(self.anchor_step_scale),
+            quantization_noise: !self.no_quantization_noise,
+            output: self.output.clone(),
             eval: self.eval_options(),
             report: self.report.clone(),
         })

@@ -1,11 +1,14 @@
 //! The anchor base trains on the generated scene: the decoder's derivation of the trained
-//! model's Gaussians shows the scene far better than the initial model's.
+//! model's Gaussians shows the scene far better than the initial model's, and its stream, as
+//! rounded, shows it almost as well as the trained model.
 
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{LoadOptions, load_scene};
 use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::scene::{Base, Scene};
+use pwgs_decoder::stream;
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
+use pwgs_encoder::anchor::quantize::{AnchorSteps, quantize};
 use pwgs_encoder::anchor::train::AnchorTrainer;
 use pwgs_encoder::evaluate::{MeanScore, evaluate};
 
@@ -17,7 +20,7 @@ fn anchors_learn_the_generated_scene() {
     let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
     let voxel = 0.05 * data.normalization.scale;
     let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel };
-    let initial = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    let (initial, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
     let psnr = |model: &AnchorModel| {
         let scene = Scene {
             base: Base::Anchors(Box::new(model.clone())),
@@ -28,7 +31,8 @@ fn anchors_learn_the_generated_scene() {
         MeanScore::of(&evaluate(&scene, &data, None, None).unwrap()).psnr
     };
     let before = psnr(&initial);
-    let mut trainer = AnchorTrainer::new(&initial, &data, 300, [0.0; 3], 0).unwrap();
+    let steps = AnchorSteps::default();
+    let mut trainer = AnchorTrainer::new(&initial, &data, 300, [0.0; 3], 0).unwrap().with_quantization_noise(steps, 30);
     let mut last = None;
     while trainer.iteration < trainer.iterations {
         last = Some(trainer.step().unwrap());
@@ -45,6 +49,12 @@ fn anchors_learn_the_generated_scene() {
         last.gaussians
     );
     assert!(after > before + 4.0, "training gained only {:.2} dB", after - before);
+    // Rounded to the stream's steps, the model loses little.
+    let rounded = quantize(&trained, &grid, &steps).unwrap().dequantize();
+    let quantized = psnr(&rounded);
+    eprintln!("as the stream rounds it: {quantized:.2} dB");
+    assert!(quantized > after - 0.3, "rounding cost {:.2} dB", after - quantized);
+    assert_ne!(rounded, trained, "the steps round something");
 }
 
 #[test]
@@ -66,12 +76,26 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     assert!(report["mean"]["psnr"].as_f64().unwrap() > 5.0);
     assert!(std::path::Path::new(&eval).join("view_008.png").is_file());
 
+    // -o writes the stream the evaluation decoded: its hash is the report's.
+    let stream_path = dir("s.pwb");
+    let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
+    let report2 = dir("r2.json");
+    args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "-o", &stream_path, "--report", &report2]);
+    let out = pwenc(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let bytes = std::fs::read(&stream_path).unwrap();
+    let decoded = stream::decode(&bytes).unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report2).unwrap()).unwrap();
+    assert_eq!(report["stream"]["bytes"].as_u64(), Some(bytes.len() as u64));
+    assert_eq!(report["stream"]["attribute_sha256"].as_str(), Some(decoded.scene.attribute_hash().as_str()));
+    assert_eq!(decoded.header.base, stream::header::BaseKind::Anchors);
+
     // What the anchor base cannot do yet is refused before any training.
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
-    let stream = dir("s.pwb");
-    args.extend(["-o", &stream]);
+    let stream = dir("w.pwb");
+    args.extend(["-o", &stream, "--wrapper"]);
     let out = pwenc(&args);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("no stream format yet"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--wrapper"));
     assert!(!std::path::Path::new(&stream).exists());
 }

@@ -14,6 +14,7 @@ use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
 use pwgs_decoder::scene::Scene;
 use pwgs_decoder::stream;
+use pwgs_decoder::stream::header::BaseKind;
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::residual_picture;
 
@@ -138,7 +139,10 @@ fn print_info(path: &Path, bytes: &[u8], container: &Container, header: &stream:
     println!("stream        {} ({} bytes)", path.display(), bytes.len());
     println!("version       {}.{}", container.major, container.minor);
     println!("base          {}", header.base.name());
-    println!("gaussians     {}", header.gaussian_count);
+    match header.base {
+        BaseKind::Plain3dgs => println!("gaussians     {}", header.gaussian_count),
+        BaseKind::Anchors => println!("anchors       {}", header.gaussian_count),
+    }
     println!("sh degree     {}", header.sh_degree);
     println!("normalization center {:?}, scale {}", header.center, header.scale);
     println!("background    {:?}", header.background);

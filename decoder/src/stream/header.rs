@@ -13,18 +13,22 @@ pub const MAX_GAUSSIANS: u32 = 1 << 24;
 pub enum BaseKind {
     /// Plain 3D Gaussians (SPEC.md section 6).
     Plain3dgs,
+    /// Anchors and the MLPs that derive each view's Gaussians (SPEC.md section 12).
+    Anchors,
 }
 
 impl BaseKind {
     fn code(self) -> u8 {
         match self {
             BaseKind::Plain3dgs => 0,
+            BaseKind::Anchors => 1,
         }
     }
 
     pub fn name(self) -> &'static str {
         match self {
             BaseKind::Plain3dgs => "3dgs",
+            BaseKind::Anchors => "anchor",
         }
     }
 }
@@ -33,6 +37,7 @@ impl BaseKind {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Header {
     pub base: BaseKind,
+    /// Gaussians of a plain base, anchors of an anchor base.
     pub gaussian_count: u32,
     pub sh_degree: u32,
     /// Scene normalization (DESIGN.md section 4): world = center + scale * normalized.
@@ -64,6 +69,7 @@ impl Header {
         let mut r = FieldReader::new("HEAD", payload);
         let base = match r.u8("base")? {
             0 => BaseKind::Plain3dgs,
+            1 => BaseKind::Anchors,
             other => return Err(r.error("base", format!("unknown base kind {other}"))),
         };
         let gaussian_count = r.u32("gaussian count")?;
@@ -73,6 +79,9 @@ impl Header {
         let sh_degree = u32::from(r.u8("sh degree")?);
         if sh_degree > MAX_SH_DEGREE {
             return Err(r.error("sh degree", format!("{sh_degree} exceeds {MAX_SH_DEGREE}")));
+        }
+        if base == BaseKind::Anchors && sh_degree != 0 {
+            return Err(r.error("sh degree", format!("{sh_degree} is not 0 (the anchor base's MLPs give colors)")));
         }
         let center = [r.f32("center x")?, r.f32("center y")?, r.f32("center z")?];
         let scale = r.f32("scale")?;

@@ -1,6 +1,7 @@
 //! The pwgs stream (SPEC.md): what each section holds and how a decoder turns it back into
 //! Gaussians. The container syntax itself lives in `pwgs-bitstream`.
 
+pub mod anchor;
 pub mod entropy;
 pub mod header;
 pub mod octree;
@@ -12,6 +13,7 @@ use sha2::{Digest, Sha256};
 
 use crate::gaussians::Gaussians;
 use crate::scene::{Base, Scene};
+use anchor::QuantizedAnchors;
 use header::{BaseKind, Header};
 use plain::PlainGaussians;
 use wrap::{QuantizedSynthesis, WRAPPER};
@@ -53,15 +55,121 @@ const PLAIN_SECTIONS: [Tag; 8] = [
     WRAPPER,
 ];
 
+/// Critical sections an anchor stream may hold.
+const ANCHOR_SECTIONS: [Tag; 8] = [
+    Tag::HEAD,
+    anchor::NETWORKS,
+    anchor::ANCHOR_POSITIONS,
+    anchor::FEATURES,
+    anchor::SCALING,
+    anchor::OFFSETS,
+    anchor::MASKS,
+    WRAPPER,
+];
+
+/// What a stream's base holds, quantized, as coded.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Content {
+    Plain(PlainGaussians),
+    Anchors(Box<QuantizedAnchors>),
+}
+
+impl Content {
+    /// The plain content, for tools that only handle plain Gaussians.
+    pub fn plain(&self) -> Option<&PlainGaussians> {
+        match self {
+            Content::Plain(p) => Some(p),
+            Content::Anchors(_) => None,
+        }
+    }
+
+    /// The base this content reconstructs (normative).
+    pub fn dequantize(&self) -> Base {
+        match self {
+            Content::Plain(p) => Base::Plain(p.dequantize()),
+            Content::Anchors(a) => Base::Anchors(Box::new(a.dequantize())),
+        }
+    }
+}
+
+/// Content to write: either kind, borrowed ([`encode`] takes `&PlainGaussians`,
+/// `&QuantizedAnchors` or `&Content`).
+#[derive(Debug, Clone, Copy)]
+pub enum ContentRef<'a> {
+    Plain(&'a PlainGaussians),
+    Anchors(&'a QuantizedAnchors),
+}
+
+impl<'a> From<&'a PlainGaussians> for ContentRef<'a> {
+    fn from(p: &'a PlainGaussians) -> Self {
+        ContentRef::Plain(p)
+    }
+}
+
+impl<'a> From<&'a QuantizedAnchors> for ContentRef<'a> {
+    fn from(a: &'a QuantizedAnchors) -> Self {
+        ContentRef::Anchors(a)
+    }
+}
+
+impl<'a> From<&'a Content> for ContentRef<'a> {
+    fn from(c: &'a Content) -> Self {
+        match c {
+            Content::Plain(p) => ContentRef::Plain(p),
+            Content::Anchors(a) => ContentRef::Anchors(a.as_ref()),
+        }
+    }
+}
+
+impl ContentRef<'_> {
+    fn base_kind(self) -> BaseKind {
+        match self {
+            ContentRef::Plain(_) => BaseKind::Plain3dgs,
+            ContentRef::Anchors(_) => BaseKind::Anchors,
+        }
+    }
+
+    /// Gaussians of a plain base, anchors of an anchor base: the header's count.
+    fn len(self) -> usize {
+        match self {
+            ContentRef::Plain(p) => p.len(),
+            ContentRef::Anchors(a) => a.len(),
+        }
+    }
+
+    /// Stream bytes this content needs at least so that a decoder accepts its count (SPEC.md
+    /// section 9).
+    fn minimum_stream_len(self) -> usize {
+        match self {
+            ContentRef::Plain(p) => p.len(),
+            ContentRef::Anchors(a) => {
+                let values = a.len() as u64 * anchor::values_per_anchor(a.feature_dim, a.offsets_per_anchor);
+                a.len().max(values.div_ceil(anchor::VALUES_PER_BYTE) as usize)
+            }
+        }
+    }
+
+    fn write_sections(self) -> Result<Vec<(Tag, Vec<u8>)>, octree::OctreeError> {
+        match self {
+            ContentRef::Plain(p) => p.write_sections(),
+            ContentRef::Anchors(a) => a.write_sections(),
+        }
+    }
+}
+
 /// Writes a complete stream, with the perceptual wrapper when `wrapper` is given. The header's
-/// count and SH degree must match the content.
-pub fn encode(
+/// base kind, count and SH degree must match the content.
+pub fn encode<'a>(
     header: &Header,
-    content: &PlainGaussians,
+    content: impl Into<ContentRef<'a>>,
     wrapper: Option<&QuantizedSynthesis>,
 ) -> Result<Vec<u8>, octree::OctreeError> {
+    let content = content.into();
+    assert_eq!(header.base, content.base_kind(), "header base kind does not match the content");
     assert_eq!(header.gaussian_count as usize, content.len(), "header count does not match the content");
-    assert_eq!(header.sh_degree, content.sh_degree, "header SH degree does not match the content");
+    if let ContentRef::Plain(p) = content {
+        assert_eq!(header.sh_degree, p.sh_degree, "header SH degree does not match the content");
+    }
     let mut sections = vec![(Tag::HEAD, header.write())];
     sections.extend(content.write_sections()?);
     if let Some(w) = wrapper {
@@ -69,9 +177,9 @@ pub fn encode(
     }
     let bytes = write_container(&sections);
     // Content far more redundant than any real scene (e.g. hundreds of identical Gaussians)
-    // can code to less than a byte per Gaussian, which decoders refuse (SPEC.md section 9):
+    // can code to fewer bytes than its count needs, which decoders refuse (SPEC.md section 9):
     // an optional section of zeros pads such a stream to the length its count needs.
-    let needed = header.gaussian_count as usize;
+    let needed = content.minimum_stream_len();
     if bytes.len() < needed {
         sections.push((PADDING, vec![0; (needed - bytes.len()).saturating_sub(SECTION_OVERHEAD)]));
         return Ok(write_container(&sections));
@@ -87,27 +195,35 @@ pub const PADDING: Tag = Tag(*b"pad ");
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decoded {
     pub header: Header,
-    pub content: PlainGaussians,
+    pub content: Content,
     pub scene: Scene,
 }
 
-/// Parses, verifies and decodes a stream, checking in SPEC.md's order (section 6.4).
+/// Parses, verifies and decodes a stream, checking in SPEC.md's order (sections 6.4, 12.5).
 pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     let (container, header) = parse(bytes)?;
+    let known: &[Tag] = match header.base {
+        BaseKind::Plain3dgs => &PLAIN_SECTIONS,
+        BaseKind::Anchors => &ANCHOR_SECTIONS,
+    };
     for section in &container.sections {
-        if section.tag.is_critical() && !PLAIN_SECTIONS.contains(&section.tag) {
+        if section.tag.is_critical() && !known.contains(&section.tag) {
             return Err(DecodeError::UnknownCriticalSection(section.tag));
         }
     }
     check_count_against_length(&header, bytes.len())?;
-    let BaseKind::Plain3dgs = header.base;
-    let content = PlainGaussians::read_sections(&container, header.gaussian_count as usize, header.sh_degree)?;
-    let base = Base::Plain(content.dequantize());
+    let count = header.gaussian_count as usize;
+    let content = match header.base {
+        BaseKind::Plain3dgs => Content::Plain(PlainGaussians::read_sections(&container, count, header.sh_degree)?),
+        BaseKind::Anchors => {
+            Content::Anchors(Box::new(QuantizedAnchors::read_sections(&container, count, bytes.len())?))
+        }
+    };
     let wrapper = match container.section(WRAPPER) {
         Some(section) => Some(QuantizedSynthesis::read(section.payload, container.minor)?.dequantize()),
         None => None,
     };
-    let scene = Scene { base, wrapper, frame: header.frame(), background: header.background };
+    let scene = Scene { base: content.dequantize(), wrapper, frame: header.frame(), background: header.background };
     Ok(Decoded { header, content, scene })
 }
 

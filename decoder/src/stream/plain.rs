@@ -114,13 +114,8 @@ impl PlainGaussians {
 
     /// The sections of this content, attributes in the order the octree lists positions.
     pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
-        let (coded, order) = octree::encode(&self.positions, self.grid.depth)?;
-        let mut w = FieldWriter::new();
-        self.grid.origin.iter().for_each(|&c| w.f32(c));
-        w.f32(self.grid.cell);
-        w.u8(self.grid.depth);
-        w.extend(&coded);
-        let mut sections = vec![(POSITIONS, w.into_bytes())];
+        let (positions, order) = write_positions(&self.grid, &self.positions)?;
+        let mut sections = vec![(POSITIONS, positions)];
 
         let block = |steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
             let mut w = FieldWriter::new();
@@ -171,7 +166,7 @@ impl PlainGaussians {
         if rest == 0 && container.section(SH_REST).is_some() {
             return Err(DecodeError::invalid(SH_REST, "present, but the SH degree is 0 (the section must be absent)"));
         }
-        let (grid, positions) = read_positions(positions_payload, count)?;
+        let (grid, positions) = read_positions(POSITIONS, positions_payload, count)?;
         let decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
             .zip(block_payloads)
@@ -211,8 +206,29 @@ impl PlainGaussians {
     }
 }
 
-fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u32; 3]>), DecodeError> {
-    let mut r = FieldReader::new("POSN", payload);
+/// The payload of a positions section (`POSN`, `APOS`): the grid, then the octree, and the
+/// order in which a decoder lists the points (`order[i]` indexes `positions`).
+pub(super) fn write_positions(
+    grid: &PositionGrid,
+    positions: &[[u32; 3]],
+) -> Result<(Vec<u8>, Vec<usize>), OctreeError> {
+    let (coded, order) = octree::encode(positions, grid.depth)?;
+    let mut w = FieldWriter::new();
+    grid.origin.iter().for_each(|&c| w.f32(c));
+    w.f32(grid.cell);
+    w.u8(grid.depth);
+    w.extend(&coded);
+    Ok((w.into_bytes(), order))
+}
+
+/// Reads a positions section holding exactly `count` points.
+pub(super) fn read_positions(
+    tag: Tag,
+    payload: &[u8],
+    count: usize,
+) -> Result<(PositionGrid, Vec<[u32; 3]>), DecodeError> {
+    let name = String::from_utf8_lossy(&tag.0).into_owned();
+    let mut r = FieldReader::new(&name, payload);
     let origin = [r.f32("origin x")?, r.f32("origin y")?, r.f32("origin z")?];
     let cell = r.f32("cell")?;
     if !(cell > 0.0) {
@@ -227,15 +243,15 @@ fn read_positions(payload: &[u8], count: usize) -> Result<(PositionGrid, Vec<[u3
     if !(far < f64::from(f32::MAX)) {
         return Err(r.error("cell", format!("a {depth}-level grid of cell {cell} reaches beyond binary32")).into());
     }
-    let positions = octree::decode(r.rest(), depth, count).map_err(|e| DecodeError::coded(POSITIONS, e))?;
+    let positions = octree::decode(r.rest(), depth, count).map_err(|e| DecodeError::coded(tag, e))?;
     Ok((PositionGrid { origin, cell, depth }, positions))
 }
 
 /// A decoded attribute block: its steps and its values, Gaussian-major.
-type Block = (Vec<f32>, Vec<i32>);
+pub(super) type Block = (Vec<f32>, Vec<i32>);
 
 /// A constraint on a block's values, checked as each is decoded: `(channel, value)`.
-type ValueCheck = fn(usize, i32) -> Result<(), String>;
+pub(super) type ValueCheck = fn(usize, i32) -> Result<(), String>;
 
 /// ROTN's channel 0 is the index of the largest quaternion component (SPEC.md section 6.2).
 fn check_rotation_index(channel: usize, value: i32) -> Result<(), String> {
@@ -247,7 +263,7 @@ fn check_rotation_index(channel: usize, value: i32) -> Result<(), String> {
 
 /// Block syntax: one frequency table per channel, then the range-coded values, Gaussian by
 /// Gaussian (in `order`), channel by channel.
-fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dyn Fn(usize, usize) -> i32) {
+pub(super) fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dyn Fn(usize, usize) -> i32) {
     let tables: Vec<FrequencyTable> =
         (0..channels).map(|c| FrequencyTable::fit(&order.iter().map(|&i| value(i, c)).collect::<Vec<_>>())).collect();
     tables.iter().for_each(|t| t.write(w));
@@ -262,7 +278,7 @@ fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dy
 
 /// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
 /// `count` Gaussians, each value passing `check` as it is decoded.
-fn read_block(
+pub(super) fn read_block(
     tag: Tag,
     payload: &[u8],
     (steps, channels, check): (usize, usize, ValueCheck),

@@ -1,12 +1,16 @@
 //! The initial anchor model from a point cloud, as Scaffold-GS initializes from SfM points:
-//! one anchor per occupied voxel (at the voxel's center of rounding, `round(p / v) * v`), a
+//! one anchor per occupied voxel (at the voxel's center of rounding, `round(p / v) * v`, as the
+//! stream's grid reconstructs it), a
 //! zero feature and zero offsets, all 6 log scales set from the distance to the nearest other
 //! anchors, every offset unmasked, and MLPs with PyTorch's default initialization.
 
+use anyhow::{Result, ensure};
 use pwgs_decoder::anchor::{AnchorModel, Mlp};
 use pwgs_decoder::ply::PointCloud;
 use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::stream::plain::PositionGrid;
 
+use super::quantize::anchor_grid;
 use crate::init::gaussians_from_points;
 
 /// The shape of an anchor model.
@@ -20,13 +24,15 @@ pub struct AnchorShape {
     pub voxel: f32,
 }
 
-/// One point per occupied voxel of edge `voxel`, sorted (x, then y, then z).
-pub fn voxel_anchors(cloud: &PointCloud, voxel: f32) -> Vec<[f32; 3]> {
+/// The occupied voxels of edge `voxel`, sorted (x, then y, then z), on the grid that holds
+/// them, and one anchor position per voxel.
+pub fn voxel_anchors(cloud: &PointCloud, voxel: f32) -> Result<(PositionGrid, Vec<[f32; 3]>)> {
     let mut cells: Vec<[i64; 3]> =
         cloud.positions.iter().map(|p| p.map(|c| (f64::from(c) / f64::from(voxel)).round() as i64)).collect();
     cells.sort_unstable();
     cells.dedup();
-    cells.iter().map(|c| c.map(|v| (v as f64 * f64::from(voxel)) as f32)).collect()
+    let (grid, q) = anchor_grid(&cells, voxel)?;
+    Ok((grid, q.iter().map(|&c| grid.position(c)).collect()))
 }
 
 /// Weights uniform in ±1/sqrt(inputs), as PyTorch initializes `nn.Linear`.
@@ -46,17 +52,18 @@ fn mlp(inputs: usize, hidden: usize, outputs: usize, rng: &mut SplitMix64) -> Ml
     }
 }
 
-/// The initial model of `cloud` (at least one point), with hidden layers of width F.
-pub fn initial_model(cloud: &PointCloud, shape: AnchorShape, seed: u64) -> anyhow::Result<AnchorModel> {
-    anyhow::ensure!(!cloud.positions.is_empty(), "no points to place anchors on");
-    anyhow::ensure!(shape.voxel > 0.0 && shape.voxel.is_finite(), "the voxel size must be positive");
-    let positions = voxel_anchors(cloud, shape.voxel);
+/// The initial model of `cloud` (at least one point), with hidden layers of width F, and the
+/// grid its anchors sit on.
+pub fn initial_model(cloud: &PointCloud, shape: AnchorShape, seed: u64) -> Result<(AnchorModel, PositionGrid)> {
+    ensure!(!cloud.positions.is_empty(), "no points to place anchors on");
+    ensure!(shape.voxel > 0.0 && shape.voxel.is_finite(), "the voxel size must be positive");
+    let (grid, positions) = voxel_anchors(cloud, shape.voxel)?;
     let anchors = PointCloud { colors: vec![[0.5; 3]; positions.len()], positions };
     // The plain initialization's scale: sqrt of the mean squared distance to 3 neighbours.
     let scales = gaussians_from_points(&anchors, 0)?.log_scales;
     let (n, f, k) = (anchors.positions.len(), shape.feature_dim, shape.offsets_per_anchor);
     let mut rng = SplitMix64(seed ^ 0x414e_4348);
-    Ok(AnchorModel {
+    let model = AnchorModel {
         feature_dim: f,
         offsets_per_anchor: k,
         features: vec![0.0; n * f],
@@ -67,7 +74,8 @@ pub fn initial_model(cloud: &PointCloud, shape: AnchorShape, seed: u64) -> anyho
         color: mlp(f + 4, f, 3 * k, &mut rng),
         covariance: mlp(f + 4, f, 7 * k, &mut rng),
         positions: anchors.positions,
-    })
+    };
+    Ok((model, grid))
 }
 
 #[cfg(test)]
@@ -87,11 +95,12 @@ mod tests {
             colors: vec![[0.5; 3]; 5],
         };
         // Voxel 0.1: cells (0,0,0), (1,0,0) twice, (1,0,0), (-2,3,0), (0,0,0).
-        let anchors = voxel_anchors(&cloud, 0.1);
+        let (grid, anchors) = voxel_anchors(&cloud, 0.1).unwrap();
         assert_eq!(anchors.len(), 3);
+        assert_eq!(anchors[0], grid.position([0, 0, 0]));
         assert_eq!(anchors[0], [(-2.0f64 * 0.1) as f32, (3.0f64 * 0.1f64) as f32, 0.0]);
         let shape = AnchorShape { feature_dim: 4, offsets_per_anchor: 3, voxel: 0.1 };
-        let model = initial_model(&cloud, shape, 1).unwrap();
+        let (model, _) = initial_model(&cloud, shape, 1).unwrap();
         assert!(model.is_consistent());
         assert_eq!((model.len(), model.opacity.hidden), (3, 4));
         assert!(model.features.iter().chain(&model.offsets).all(|&v| v == 0.0));

@@ -1,6 +1,8 @@
 //! The anchor base's encoder side (DESIGN.md section 8, issue 15): the initial model from a
-//! point cloud ([`init`]) and training for pixels ([`train`]). The model itself, and how it
-//! turns into each view's Gaussians, is the decoder's [`pwgs_decoder::anchor`].
+//! point cloud ([`init`]), training for pixels ([`train`]) and the stream content of a trained
+//! model ([`quantize`]). The model itself, and how it turns into each view's Gaussians, is the
+//! decoder's [`pwgs_decoder::anchor`].
 
 pub mod init;
+pub mod quantize;
 pub mod train;

@@ -3,6 +3,10 @@
 //! step derives the view's neural Gaussians with the same formulas as
 //! [`pwgs_decoder::anchor`], on tensors, and renders them with the differentiable rasterizer.
 //!
+//! With quantization noise on, the anchors' features, scaling and offsets are perturbed by
+//! uniform noise of their quantization steps (the usual proxy for rounding, as in HAC), so that
+//! the model the stream stores, rounded, renders as well as the trained one.
+//!
 //! Anchors stay where initialization put them; growing and pruning anchors, learned masks and
 //! the rate term come next (issue 15).
 
@@ -16,6 +20,7 @@ use pwgs_decoder::gaussians::SH_C0;
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 
+use super::quantize::AnchorSteps;
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::splat_op::{SplatView, render};
 use crate::train::adam::direction;
@@ -51,6 +56,9 @@ pub struct AnchorTrainer {
     background: [f32; 3],
     extent: f32,
     rng: SplitMix64,
+    /// Quantization steps of features, scaling and offsets, and the iteration from which
+    /// their noise is on.
+    noise: Option<(AnchorSteps, u32)>,
     pub iteration: u32,
     pub iterations: u32,
 }
@@ -147,9 +155,28 @@ impl AnchorTrainer {
             background,
             extent: data.normalization.scale,
             rng: SplitMix64(seed),
+            noise: None,
             iteration: 0,
             iterations,
         })
+    }
+
+    /// Trains with the quantization noise of `steps` from iteration `from` on.
+    pub fn with_quantization_noise(mut self, steps: AnchorSteps, from: u32) -> Self {
+        self.noise = Some((steps, from));
+        self
+    }
+
+    /// Uniform noise in ±step/2 shaped like parameter `i`, or `None` while noise is off.
+    fn quantization_noise(&mut self, i: usize) -> Option<Tensor<2>> {
+        let (steps, from) = self.noise?;
+        if self.iteration < from {
+            return None;
+        }
+        let step = [steps.feature, steps.scaling, steps.offset][i];
+        let shape = self.params[i].dims();
+        let values: Vec<f32> = (0..shape[0] * shape[1]).map(|_| self.rng.uniform(-0.5, 0.5) * step).collect();
+        Some(host_tensor(&values, shape, &self.positions.device()))
     }
 
     /// The learning rate of parameter `i` at the current iteration.
@@ -170,10 +197,17 @@ impl AnchorTrainer {
         let (camera, target) = self.views[(self.rng.next_u64() % self.views.len() as u64) as usize].clone();
         let device = self.positions.device();
         let tracked: Vec<Tensor<2>> = self.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
+        // Features, scaling and offsets as the step sees them: with quantization noise when on.
+        let attributes: Vec<Tensor<2>> = (0..3)
+            .map(|i| match self.quantization_noise(i) {
+                Some(noise) => tracked[i].clone() + noise.autodiff(),
+                None => tracked[i].clone(),
+            })
+            .collect();
         let center = Tensor::<2>::from_data(TensorData::new(camera.center().to_array().to_vec(), [1, 3]), &device);
         let v = self.positions.clone() - center;
         let d = (v.clone() * v.clone()).sum_dim(1).sqrt();
-        let input = Tensor::cat(vec![tracked[0].clone(), (v / d.clone()).autodiff(), d.autodiff()], 1);
+        let input = Tensor::cat(vec![attributes[0].clone(), (v / d.clone()).autodiff(), d.autodiff()], 1);
         let alpha = forward(input.clone(), &tracked[3..7]).tanh();
         // The kept neural Gaussians: positive opacity and an open mask.
         let alpha_host = tensor_values(alpha.clone().inner());
@@ -190,9 +224,9 @@ impl AnchorTrainer {
         let alpha = per_gaussian(alpha, 1).clamp(1e-6, 1.0 - 1e-6);
         let color = per_gaussian(sigmoid(forward(input.clone(), &tracked[7..11])), 3);
         let cov = per_gaussian(forward(input, &tracked[11..15]), 7);
-        let scaling = per_anchor(tracked[1].clone(), 6);
+        let scaling = per_anchor(attributes[1].clone(), 6);
         let anchors = per_anchor(self.positions.clone().autodiff(), 3);
-        let offsets = per_gaussian(tracked[2].clone(), 3);
+        let offsets = per_gaussian(attributes[2].clone(), 3);
         let means = anchors + offsets * scaling.clone().slice([0..m, 0..3]).exp();
         let log_scales = scaling.slice([0..m, 3..6]) + log_sigmoid(cov.clone().slice([0..m, 0..3]));
         let rotations = cov.slice([0..m, 3..7]);

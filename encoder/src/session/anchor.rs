@@ -1,17 +1,19 @@
-//! `pwenc SCENE --base anchor`: trains the anchor base for pixels and evaluates it as a
-//! decoder derives it. The anchor base has no stream syntax yet (issue 15), so this job
-//! writes a report and renders, not a stream.
+//! `pwenc SCENE --base anchor`: trains the anchor base for pixels (with quantization noise),
+//! quantizes it into an anchor stream (SPEC.md section 12), decodes that stream and evaluates
+//! what a decoder shows. The rate term and the wrapper on anchors come next (issue 15).
 
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::scene::{Base, Scene};
+use pwgs_decoder::stream::header::{BaseKind, Header};
+use pwgs_decoder::stream::{self, Decoded};
 use serde::Serialize;
 
-use super::{check_outputs, write_report};
+use super::{check_outputs, section_sizes, write_report};
 use crate::anchor::init::{AnchorShape, initial_model};
+use crate::anchor::quantize::{AnchorSteps, quantize};
 use crate::anchor::train::AnchorTrainer;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 
@@ -27,8 +29,27 @@ pub struct AnchorJob {
     pub relative_voxel: f32,
     pub background: [f32; 3],
     pub seed: u64,
+    pub steps: AnchorSteps,
+    /// Train with quantization noise (from a tenth of the iterations on).
+    pub quantization_noise: bool,
+    /// Write the stream here.
+    pub output: Option<PathBuf>,
     pub eval: Option<EvalOptions>,
     pub report: Option<PathBuf>,
+}
+
+/// The anchor stream as written.
+#[derive(Serialize)]
+pub struct AnchorStreamSummary {
+    pub path: Option<String>,
+    pub bytes: usize,
+    pub feature_step: f32,
+    pub scaling_step: f32,
+    pub offset_step: f32,
+    pub weight_step_log2: i8,
+    pub bias_step_log2: i8,
+    pub sections: Vec<(String, usize)>,
+    pub attribute_sha256: String,
 }
 
 #[derive(Serialize)]
@@ -46,19 +67,22 @@ pub struct AnchorReport {
     pub training_seconds: f64,
     /// Neural Gaussians rendered at the last step.
     pub last_step_gaussians: usize,
+    pub quantization_noise: bool,
+    /// The stream (also when none was written to a file: the evaluation renders its decoding).
+    pub stream: AnchorStreamSummary,
     pub mean: Option<MeanScore>,
     pub views: Vec<ViewScore>,
 }
 
 pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
-    check_outputs(&job.report, job.eval.iter().map(|e| &e.dir))?;
+    check_outputs(job.output.iter().chain(&job.report), job.eval.iter().map(|e| &e.dir))?;
     let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let data =
         load_scene(&job.scene, &job.load).with_context(|| format!("cannot load the scene {}", job.scene.display()))?;
     let points = data.points.as_ref().context("the anchor base starts from the scene's SfM points; it has none")?;
     let voxel = job.relative_voxel * data.normalization.scale;
     let shape = AnchorShape { feature_dim: job.feature_dim, offsets_per_anchor: job.offsets_per_anchor, voxel };
-    let initial = initial_model(points, shape, job.seed)?;
+    let (initial, grid) = initial_model(points, shape, job.seed)?;
     println!(
         "{} anchors from {} points (voxel {voxel:.5}), {} neural Gaussians each, features of {}",
         initial.len(),
@@ -67,6 +91,9 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         job.feature_dim
     );
     let mut trainer = AnchorTrainer::new(&initial, &data, job.iterations, job.background, job.seed)?;
+    if job.quantization_noise {
+        trainer = trainer.with_quantization_noise(job.steps, job.iterations / 10);
+    }
     let start = Instant::now();
     let mut last_step_gaussians = 0;
     while trainer.iteration < trainer.iterations {
@@ -82,13 +109,34 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         }
     }
     let training_seconds = start.elapsed().as_secs_f64();
-    let model = trainer.model();
     println!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
-    let scene = Scene {
-        base: Base::Anchors(Box::new(model)),
-        wrapper: None,
-        frame: data.normalization.frame(),
+    let content = quantize(&trainer.model(), &grid, &job.steps)?;
+    let header = Header {
+        base: BaseKind::Anchors,
+        gaussian_count: u32::try_from(content.len()).context("too many anchors for a stream")?,
+        sh_degree: 0,
+        center: data.normalization.center.to_array(),
+        scale: data.normalization.scale,
         background: job.background,
+    };
+    let bytes = stream::encode(&header, &content, None)?;
+    // What every decoder reconstructs: the evaluation renders exactly this.
+    let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
+    if let Some(path) = &job.output {
+        pwgs_decoder::atomic_file::write_atomically(path, &bytes)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
+    }
+    let stream_summary = AnchorStreamSummary {
+        path: job.output.as_ref().map(|p| p.display().to_string()),
+        bytes: bytes.len(),
+        feature_step: job.steps.feature,
+        scaling_step: job.steps.scaling,
+        offset_step: job.steps.offset,
+        weight_step_log2: job.steps.weight_exponent,
+        bias_step_log2: job.steps.bias_exponent,
+        sections: section_sizes(&bytes),
+        attribute_sha256: scene.attribute_hash(),
     };
     let (views, mean) = match &evaluation {
         Some(e) => e.run(&scene, &data).map(|(views, mean)| (views, Some(mean)))?,
@@ -108,6 +156,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         iterations: trainer.iteration,
         training_seconds,
         last_step_gaussians,
+        quantization_noise: job.quantization_noise,
+        stream: stream_summary,
         mean,
         views,
     };

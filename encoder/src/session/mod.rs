@@ -93,12 +93,7 @@ fn write_stream(
     let path = &options.path;
     pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
         .with_context(|| format!("cannot write {}", path.display()))?;
-    let container = Container::parse(&compressed.bytes).expect("the encoder's own stream parses");
-    let sections = container
-        .sections
-        .iter()
-        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + SECTION_OVERHEAD))
-        .collect();
+    let sections = section_sizes(&compressed.bytes);
     let header = &compressed.decoded.header;
     let summary = StreamSummary {
         path: path.display().to_string(),
@@ -128,6 +123,16 @@ fn write_stream(
         println!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);
     }
     Ok((compressed, summary))
+}
+
+/// Each section's tag and its bytes in the stream, header and CRC included.
+fn section_sizes(stream: &[u8]) -> Vec<(String, usize)> {
+    let container = Container::parse(stream).expect("the encoder's own stream parses");
+    container
+        .sections
+        .iter()
+        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + SECTION_OVERHEAD))
+        .collect()
 }
 
 fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {

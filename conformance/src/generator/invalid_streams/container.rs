@@ -286,10 +286,10 @@ pub(super) fn container_and_fields(b: &Bases, cases: &mut Cases) {
 
     // HEAD: SPEC.md section 4.
     for (file, value, error) in [
-        ("head-base-1", 1u8, "section 'HEAD', field `base` … unknown base kind 1"),
+        ("head-base-2", 2u8, "section 'HEAD', field `base` … unknown base kind 2"),
         ("head-base-255", 255, "section 'HEAD', field `base` … unknown base kind 255"),
     ] {
-        let description = format!("HEAD's base is {value} (1 is reserved for the anchor base).");
+        let description = format!("HEAD's base is {value} (0 and 1 are the only base kinds).");
         cases.add(file, "S4-base", error, &description, edit(p, |s| s.payload(Tag::HEAD)[head::BASE] = value));
     }
     cases.add(

@@ -1,0 +1,235 @@
+//! Anchor streams (base 1): round trips, the normative reconstruction, and refusal of corrupt
+//! or oversized input with an error naming the problem.
+
+use pwgs_bitstream::{Container, Tag, write_container};
+use pwgs_decoder::random_scene::{SplitMix64, axis_camera};
+use pwgs_decoder::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::header::{BaseKind, Header};
+use pwgs_decoder::stream::plain::PositionGrid;
+use pwgs_decoder::stream::{self, Content};
+
+fn ints(rng: &mut SplitMix64, n: usize, spread: f32) -> Vec<i32> {
+    (0..n).map(|_| (rng.uniform(-spread, spread)).round() as i32).collect()
+}
+
+fn mlp(rng: &mut SplitMix64, inputs: usize, hidden: usize, outputs: usize) -> QuantizedMlp {
+    QuantizedMlp {
+        hidden,
+        weight_exponent: -8,
+        bias_exponent: -10,
+        w1: ints(rng, hidden * inputs, 60.0),
+        b1: ints(rng, hidden, 200.0),
+        w2: ints(rng, outputs * hidden, 60.0),
+        b2: ints(rng, outputs, 200.0),
+    }
+}
+
+/// `n` distinct anchors on a 6-level grid with F = 5, K = 3.
+fn random_anchors(n: usize, seed: u64) -> QuantizedAnchors {
+    anchors_with_features(n, 5, seed)
+}
+
+/// `n` distinct anchors on a 6-level grid with F = `f`, K = 3.
+fn anchors_with_features(n: usize, f: usize, seed: u64) -> QuantizedAnchors {
+    let mut rng = SplitMix64(seed);
+    let k = 3;
+    let mut positions: Vec<[u32; 3]> = Vec::new();
+    while positions.len() < n {
+        let p: [u32; 3] = std::array::from_fn(|_| (rng.next_u64() % 64) as u32);
+        if !positions.contains(&p) {
+            positions.push(p);
+        }
+    }
+    QuantizedAnchors {
+        grid: PositionGrid { origin: [-0.5, -0.5, 2.0], cell: 1.0 / 64.0, depth: 6 },
+        positions,
+        feature_dim: f,
+        offsets_per_anchor: k,
+        feature_step: 0.05,
+        features: ints(&mut rng, n * f, 20.0),
+        scaling_step: 0.02,
+        scaling: (0..n).map(|_| std::array::from_fn(|_| (rng.uniform(-250.0, -150.0)) as i32)).collect(),
+        offset_step: 0.03,
+        offsets: ints(&mut rng, n * 3 * k, 30.0),
+        masks: (0..n * k).map(|i| i % 5 != 0).collect(),
+        mlps: [mlp(&mut rng, f + 4, 6, k), mlp(&mut rng, f + 4, 4, 3 * k), mlp(&mut rng, f + 4, 5, 7 * k)],
+    }
+}
+
+fn header_for(content: &QuantizedAnchors) -> Header {
+    Header {
+        base: BaseKind::Anchors,
+        gaussian_count: content.len() as u32,
+        sh_degree: 0,
+        center: [0.0; 3],
+        scale: 1.0,
+        background: [0.0; 3],
+    }
+}
+
+fn encode(content: &QuantizedAnchors) -> Vec<u8> {
+    stream::encode(&header_for(content), content, None).unwrap()
+}
+
+/// The content as a decoder lists it: anchors in the octree's order.
+fn reordered(c: &QuantizedAnchors) -> QuantizedAnchors {
+    let (_, order) = stream::octree::encode(&c.positions, c.grid.depth).unwrap();
+    let (f, k) = (c.feature_dim, c.offsets_per_anchor);
+    let rows = |v: &[i32], w: usize| order.iter().flat_map(|&i| v[i * w..(i + 1) * w].to_vec()).collect::<Vec<_>>();
+    QuantizedAnchors {
+        positions: order.iter().map(|&i| c.positions[i]).collect(),
+        features: rows(&c.features, f),
+        scaling: order.iter().map(|&i| c.scaling[i]).collect(),
+        offsets: rows(&c.offsets, 3 * k),
+        masks: order.iter().flat_map(|&i| c.masks[i * k..(i + 1) * k].to_vec()).collect(),
+        ..c.clone()
+    }
+}
+
+fn with_payload(bytes: &[u8], tag: Tag, edit: impl Fn(&mut Vec<u8>)) -> Vec<u8> {
+    let c = Container::parse(bytes).unwrap();
+    let mut sections: Vec<(Tag, Vec<u8>)> = c.sections.iter().map(|s| (s.tag, s.payload.to_vec())).collect();
+    sections.iter_mut().filter(|(t, _)| *t == tag).for_each(|(_, p)| edit(p));
+    write_container(&sections)
+}
+
+#[test]
+fn anchor_streams_round_trip_in_octree_order() {
+    let content = random_anchors(120, 1);
+    let decoded = stream::decode(&encode(&content)).unwrap();
+    assert_eq!(decoded.header.base, BaseKind::Anchors);
+    let expected = reordered(&content);
+    assert_eq!(decoded.content, Content::Anchors(Box::new(expected.clone())));
+    assert_eq!(decoded.scene.base, decoded.content.dequantize());
+    let model = expected.dequantize();
+    assert!(model.is_consistent());
+    // The normative reconstruction: every value is its integer times its step.
+    assert_eq!(model.features[7], expected.features[7] as f32 * 0.05);
+    assert_eq!(model.scaling[3][4], expected.scaling[3][4] as f32 * 0.02);
+    assert_eq!(model.offsets[11], expected.offsets[11] as f32 * 0.03);
+    assert_eq!(model.opacity.w1[2], expected.mlps[0].w1[2] as f32 / 256.0);
+    assert_eq!(model.color.b2[1], expected.mlps[1].b2[1] as f32 / 1024.0);
+    assert_eq!(model.positions[5], expected.grid.position(expected.positions[5]));
+    // A decoded anchor scene renders views whose Gaussians its MLPs derive.
+    let camera = axis_camera(48, 32, 40.0, 40.0, 24.0, 16.0);
+    assert_eq!(decoded.scene.gaussians_for(&camera).as_ref(), &model.gaussians_for(&camera));
+    assert!(decoded.scene.plain_gaussians().is_none());
+}
+
+#[test]
+fn quantizing_an_mlp_rounds_to_its_power_of_two_steps() {
+    let mut rng = SplitMix64(3);
+    let m = mlp(&mut rng, 7, 3, 2).dequantize(7, 2);
+    let mut noisy = m.clone();
+    noisy.w1.iter_mut().for_each(|w| *w += 0.3 / 256.0);
+    noisy.b2.iter_mut().for_each(|b| *b -= 0.4 / 1024.0);
+    assert_eq!(QuantizedMlp::quantize(&noisy, -8, -10).dequantize(7, 2), m);
+}
+
+#[test]
+fn empty_anchor_streams_decode() {
+    let mut content = random_anchors(0, 2);
+    content.features.clear();
+    let decoded = stream::decode(&encode(&content)).unwrap();
+    assert_eq!(decoded.content, Content::Anchors(Box::new(content)));
+}
+
+#[test]
+fn corrupt_anchor_sections_are_named() {
+    let bytes = encode(&random_anchors(60, 4));
+    let cases: Vec<(Vec<u8>, &str)> = vec![
+        (with_payload(&bytes, anchor::NETWORKS, |p| p[0] = 0), "feature dimension"),
+        (with_payload(&bytes, anchor::NETWORKS, |p| p[1] = 65), "offsets per anchor"),
+        (with_payload(&bytes, anchor::NETWORKS, |p| p[3] = 1), "weight step exponent"),
+        (with_payload(&bytes, anchor::NETWORKS, |p| p.truncate(12)), "AMLP"),
+        (with_payload(&bytes, anchor::ANCHOR_POSITIONS, |p| p.truncate(14)), "APOS"),
+        (with_payload(&bytes, anchor::FEATURES, |p| p[0..4].copy_from_slice(&(-1.0f32).to_le_bytes())), "AFEA"),
+        (with_payload(&bytes, anchor::OFFSETS, |p| p.truncate(8)), "AOFF"),
+        (with_payload(&bytes, anchor::MASKS, |p| p.truncate(1)), "AMSK"),
+        (with_payload(&bytes, Tag::HEAD, |p| p[5] = 1), "sh degree"),
+    ];
+    for (stream_bytes, needle) in cases {
+        let Err(err) = stream::decode(&stream_bytes).map(|_| ()) else { panic!("the case naming {needle} decoded") };
+        let err = err.to_string();
+        assert!(err.contains(needle), "{err} should name {needle}");
+    }
+    // A plain base's section in an anchor stream is an unknown critical section.
+    let mut sections: Vec<(Tag, Vec<u8>)> =
+        Container::parse(&bytes).unwrap().sections.iter().map(|s| (s.tag, s.payload.to_vec())).collect();
+    sections.push((Tag(*b"POSN"), vec![]));
+    let err = stream::decode(&write_container(&sections)).unwrap_err().to_string();
+    assert!(err.contains("POSN"), "{err}");
+    // A missing section is named.
+    sections.retain(|(t, _)| *t != anchor::MASKS && *t != Tag(*b"POSN"));
+    let err = stream::decode(&write_container(&sections)).unwrap_err().to_string();
+    assert!(err.contains("AMSK"), "{err}");
+}
+
+#[test]
+fn a_mask_other_than_zero_or_one_is_refused() {
+    let mut content = random_anchors(20, 5);
+    content.masks.fill(true);
+    let bytes = encode(&content);
+    // AMSK rewritten with every mask coded as 2.
+    let mut sections: Vec<(Tag, Vec<u8>)> =
+        Container::parse(&bytes).unwrap().sections.iter().map(|s| (s.tag, s.payload.to_vec())).collect();
+    let twos = {
+        use pwgs_bitstream::FieldWriter;
+        use pwgs_decoder::stream::entropy::{FrequencyTable, SymbolEncoder};
+        let table = FrequencyTable::fit(&[2]);
+        let mut w = FieldWriter::new();
+        (0..3).for_each(|_| table.write(&mut w));
+        let mut coder = SymbolEncoder::new();
+        (0..20 * 3).for_each(|_| coder.value(&table, 2));
+        w.extend(&coder.finish());
+        w.into_bytes()
+    };
+    sections.iter_mut().filter(|(t, _)| *t == anchor::MASKS).for_each(|(_, p)| *p = twos.clone());
+    let err = stream::decode(&write_container(&sections)).unwrap_err().to_string();
+    assert!(err.contains("AMSK") && err.contains("mask value 2"), "{err}");
+}
+
+/// SPEC.md section 9: an anchor count whose values cannot fit the stream's bytes is refused
+/// before any position is decoded, and a writer pads redundant content to what its count needs.
+#[test]
+fn the_anchor_count_is_bounded_by_the_stream_length() {
+    // 80 + 6 + 4 x 3 = 98 values per anchor: more than 64, so this bound is the tighter one.
+    let content = anchors_with_features(40, 80, 6);
+    let bytes = encode(&content);
+    let big = with_payload(&bytes, Tag::HEAD, |p| p[1..5].copy_from_slice(&(bytes.len() as u32).to_le_bytes()));
+    let err = stream::decode(&big).unwrap_err().to_string();
+    assert!(err.contains("AMLP") && err.contains("values per byte"), "{err}");
+    // All-alike anchors code to almost nothing: the stream is padded, and it decodes.
+    let mut alike = anchors_with_features(1000, 200, 7);
+    alike.features.fill(0);
+    alike.offsets.fill(0);
+    alike.scaling.fill([0; 6]);
+    alike.masks.fill(true);
+    for m in &mut alike.mlps {
+        [&mut m.w1, &mut m.b1, &mut m.w2, &mut m.b2].into_iter().for_each(|t| t.fill(0));
+    }
+    let bytes = encode(&alike);
+    let per_anchor = anchor::values_per_anchor(200, 3);
+    assert!(bytes.len() as u64 >= 1000 * per_anchor / anchor::VALUES_PER_BYTE);
+    assert!(Container::parse(&bytes).unwrap().section(stream::PADDING).is_some());
+    assert_eq!(stream::decode(&bytes).unwrap().content, Content::Anchors(Box::new(reordered(&alike))));
+}
+
+#[test]
+fn every_truncation_and_byte_flip_is_an_error_or_a_decode() {
+    let bytes = encode(&random_anchors(30, 8));
+    for len in 0..bytes.len() {
+        let _ = stream::decode(&bytes[..len]);
+    }
+    let mut rng = SplitMix64(9);
+    for _ in 0..1500 {
+        let mut b = bytes.clone();
+        let at = (rng.next_u64() % b.len() as u64) as usize;
+        b[at] ^= 1 << (rng.next_u64() % 8);
+        // Recompute CRCs so that the mutation reaches the payload parsers.
+        pwgs_bitstream::reseal(&mut b);
+        if let Ok(d) = stream::decode(&b) {
+            assert_eq!(d.scene.base, d.content.dequantize());
+        }
+    }
+}

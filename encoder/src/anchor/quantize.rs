@@ -1,0 +1,116 @@
+//! Turning a trained anchor model into what an anchor stream stores (SPEC.md section 12):
+//! anchor positions as integer voxel coordinates, per-anchor attributes as multiples of their
+//! steps, MLP weights as multiples of power-of-two steps. The decoder's reconstruction of the
+//! result is the model every view is rendered from, so evaluation always goes through it.
+
+use anyhow::{Result, bail, ensure};
+use pwgs_decoder::anchor::AnchorModel;
+use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::octree::MAX_DEPTH;
+use pwgs_decoder::stream::plain::PositionGrid;
+
+/// Quantization steps of an anchor stream.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AnchorSteps {
+    pub feature: f32,
+    /// Of the 6 log scales.
+    pub scaling: f32,
+    /// Of the offsets, in units of each anchor's offset scale.
+    pub offset: f32,
+    /// MLP weights: 2^weight_exponent; biases: 2^bias_exponent.
+    pub weight_exponent: i8,
+    pub bias_exponent: i8,
+}
+
+impl Default for AnchorSteps {
+    /// Steps whose rounding costs little against training noise (measured in the closing
+    /// note of issue 15): features and offsets at 1/32 (features and offsets are O(1)), log
+    /// scales at 1/64, weights at 2^-11, biases at 2^-12.
+    fn default() -> Self {
+        Self { feature: 1.0 / 32.0, scaling: 1.0 / 64.0, offset: 1.0 / 32.0, weight_exponent: -11, bias_exponent: -12 }
+    }
+}
+
+impl AnchorSteps {
+    /// The same steps with every attribute step multiplied by `factor` (weights unchanged).
+    pub fn scaled(self, factor: f32) -> Self {
+        Self { feature: self.feature * factor, scaling: self.scaling * factor, offset: self.offset * factor, ..self }
+    }
+}
+
+/// The grid the anchors of a voxel size sit on: the origin is the smallest coordinate per
+/// axis, the cell the voxel, and the depth the fewest levels that hold every anchor.
+pub fn anchor_grid(cells: &[[i64; 3]], voxel: f32) -> Result<(PositionGrid, Vec<[u32; 3]>)> {
+    ensure!(!cells.is_empty(), "no anchors to place on a grid");
+    let lo: [i64; 3] = std::array::from_fn(|a| cells.iter().map(|c| c[a]).min().expect("not empty"));
+    let q: Vec<[u32; 3]> =
+        cells.iter().map(|c| std::array::from_fn(|a| u32::try_from(c[a] - lo[a]).unwrap_or(u32::MAX))).collect();
+    let largest = q.iter().flatten().copied().max().unwrap_or(0);
+    let depth = (u32::BITS - largest.leading_zeros()).max(1);
+    if depth > u32::from(MAX_DEPTH) {
+        bail!("the anchors span {largest} voxels along an axis, more than a {MAX_DEPTH}-level grid holds");
+    }
+    let origin = lo.map(|l| (l as f64 * f64::from(voxel)) as f32);
+    Ok((PositionGrid { origin, cell: voxel, depth: depth as u8 }, q))
+}
+
+/// The integer coordinates of positions that lie on `grid` (as [`anchor_grid`] places them).
+fn grid_coordinates(positions: &[[f32; 3]], grid: &PositionGrid) -> Result<Vec<[u32; 3]>> {
+    positions
+        .iter()
+        .map(|p| {
+            let q: [u32; 3] = std::array::from_fn(|a| {
+                ((f64::from(p[a]) - f64::from(grid.origin[a])) / f64::from(grid.cell)).round().max(0.0) as u32
+            });
+            match grid.position(q) == *p {
+                true => Ok(q),
+                false => bail!("anchor {p:?} is not on the grid it was placed on"),
+            }
+        })
+        .collect()
+}
+
+fn round_all(values: &[f32], step: f32) -> Vec<i32> {
+    values.iter().map(|&v| (v / step).round() as i32).collect()
+}
+
+/// The stream content of `model`, whose anchors sit on `grid`.
+pub fn quantize(model: &AnchorModel, grid: &PositionGrid, steps: &AnchorSteps) -> Result<QuantizedAnchors> {
+    ensure!(model.is_consistent(), "the anchor model is inconsistent");
+    let finite = model.features.iter().chain(model.scaling.iter().flatten()).chain(&model.offsets);
+    ensure!(finite.into_iter().all(|v| v.is_finite()), "the anchor model has a non-finite attribute");
+    let (e_w, e_b) = (steps.weight_exponent, steps.bias_exponent);
+    Ok(QuantizedAnchors {
+        grid: *grid,
+        positions: grid_coordinates(&model.positions, grid)?,
+        feature_dim: model.feature_dim,
+        offsets_per_anchor: model.offsets_per_anchor,
+        feature_step: steps.feature,
+        features: round_all(&model.features, steps.feature),
+        scaling_step: steps.scaling,
+        scaling: model.scaling.iter().map(|s| s.map(|v| (v / steps.scaling).round() as i32)).collect(),
+        offset_step: steps.offset,
+        offsets: round_all(&model.offsets, steps.offset),
+        masks: model.masks.clone(),
+        mlps: [&model.opacity, &model.color, &model.covariance].map(|m| QuantizedMlp::quantize(m, e_w, e_b)),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grid_holds_every_cell_from_the_smallest() {
+        let cells = [[-3, 4, 10], [5, 4, 11], [-3, 7, 10]];
+        let (grid, q) = anchor_grid(&cells, 0.25).unwrap();
+        assert_eq!(grid.origin, [-0.75, 1.0, 2.5]);
+        assert_eq!(grid.depth, 4); // 8 voxels along x need 4 levels (0..=8)
+        assert_eq!(q, vec![[0, 0, 0], [8, 0, 1], [0, 3, 0]]);
+        let positions: Vec<[f32; 3]> = q.iter().map(|&c| grid.position(c)).collect();
+        assert_eq!(grid_coordinates(&positions, &grid).unwrap(), q);
+        assert!(grid_coordinates(&[[0.1, 1.0, 2.5]], &grid).is_err(), "off the grid");
+        assert_eq!(anchor_grid(&[[2, 2, 2]], 1.0).unwrap().0.depth, 1);
+        assert!(anchor_grid(&[[0, 0, 0], [1 << 25, 0, 0]], 1.0).is_err());
+    }
+}
