@@ -76,12 +76,16 @@ fn reordered(c: &QuantizedAnchors) -> QuantizedAnchors {
     let (_, order) = stream::octree::encode(&c.positions, c.grid.depth).unwrap();
     let (f, k) = (c.feature_dim, c.offsets_per_anchor);
     let rows = |v: &[i32], w: usize| order.iter().flat_map(|&i| v[i * w..(i + 1) * w].to_vec()).collect::<Vec<_>>();
+    let masks: Vec<bool> = order.iter().flat_map(|&i| c.masks[i * k..(i + 1) * k].to_vec()).collect();
+    // The stream holds no offsets of masked neural Gaussians: they decode as 0.
+    let mut offsets = rows(&c.offsets, 3 * k);
+    offsets.chunks_exact_mut(3).zip(&masks).filter(|(_, m)| !**m).for_each(|(o, _)| o.fill(0));
     QuantizedAnchors {
         positions: order.iter().map(|&i| c.positions[i]).collect(),
         features: rows(&c.features, f),
         scaling: order.iter().map(|&i| c.scaling[i]).collect(),
-        offsets: rows(&c.offsets, 3 * k),
-        masks: order.iter().flat_map(|&i| c.masks[i * k..(i + 1) * k].to_vec()).collect(),
+        offsets,
+        masks,
         ..c.clone()
     }
 }

@@ -142,6 +142,11 @@ struct EncodeArgs {
     /// the same).
     #[arg(long)]
     no_quantization_noise: bool,
+    /// With --base anchor: λ of the rate term, which trades bits for distortion (HAC's
+    /// convention: λ x mean bits per stored value; larger is smaller); 0 turns the rate term and
+    /// the learned masks off.
+    #[arg(long, default_value_t = 0.002, value_parser = parse_weight)]
+    lambda: f32,
     /// Training iterations (0: evaluate the initialization).
     #[arg(long, default_value_t = 3000)]
     iters: u32,
@@ -404,6 +409,7 @@ impl EncodeArgs {
             seed: self.seed,
             steps: AnchorSteps::default().scaled(self.anchor_step_scale),
             quantization_noise: !self.no_quantization_noise,
+            lambda: (self.lambda > 0.0).then_some(self.lambda),
             output: self.output.clone(),
             eval: self.eval_options(),
             report: self.report.clone(),

@@ -8,8 +8,9 @@ use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
 use super::entropy::{FrequencyTable, SymbolDecoder, SymbolEncoder};
+use super::gaussian_model::GaussianModel;
 use super::octree::OctreeError;
-use super::plain::{PositionGrid, ValueCheck, read_block, read_positions, write_block, write_positions};
+use super::plain::{Models, PositionGrid, ValueCheck, read_block, read_positions, write_block, write_positions};
 use super::wrap::{MAX_EXPONENT, MAX_QUANTIZED, MIN_EXPONENT, power_of_two};
 use crate::anchor::{AnchorModel, Mlp};
 
@@ -106,7 +107,7 @@ pub struct QuantizedAnchors {
     pub scaling_step: f32,
     pub scaling: Vec<[i32; 6]>,
     pub offset_step: f32,
-    /// N x 3K.
+    /// N x 3K; those of masked neural Gaussians are 0 (the stream does not hold them).
     pub offsets: Vec<i32>,
     /// N x K.
     pub masks: Vec<bool>,
@@ -152,24 +153,36 @@ impl QuantizedAnchors {
     pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
         let (positions, order) = write_positions(&self.grid, &self.positions)?;
         let (f, k) = (self.feature_dim, self.offsets_per_anchor);
-        let block = |steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
+        let block = |models, steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
             let mut w = FieldWriter::new();
             steps.iter().for_each(|&s| w.f32(s));
-            write_block(&mut w, &order, channels, value);
+            write_block(&mut w, models, &order, channels, value);
             w.into_bytes()
         };
         Ok(vec![
             (NETWORKS, self.write_networks()),
             (ANCHOR_POSITIONS, positions),
-            (FEATURES, block(&[self.feature_step], f, &|i, c| self.features[i * f + c])),
-            (SCALING, block(&[self.scaling_step], 6, &|i, c| self.scaling[i][c])),
-            (OFFSETS, block(&[self.offset_step], 3 * k, &|i, c| self.offsets[i * 3 * k + c])),
-            (MASKS, block(&[], k, &|i, c| i32::from(self.masks[i * k + c]))),
+            (FEATURES, block(Models::Gaussians, &[self.feature_step], f, &|i, c| self.features[i * f + c])),
+            (SCALING, block(Models::Gaussians, &[self.scaling_step], 6, &|i, c| self.scaling[i][c])),
+            (MASKS, block(Models::Tables, &[], k, &|i, c| i32::from(self.masks[i * k + c]))),
+            (OFFSETS, self.write_offsets(&order)),
         ])
     }
 
-    /// `AMLP`: the shape, the step exponents, one frequency table per tensor, then every
-    /// parameter in one coded chunk, tensor by tensor.
+    /// `AOFF`: the offsets of the unmasked neural Gaussians only, anchor by anchor (in `order`),
+    /// offset by offset, one table per axis.
+    fn write_offsets(&self, order: &[usize]) -> Vec<u8> {
+        let k = self.offsets_per_anchor;
+        let open: Vec<usize> =
+            order.iter().flat_map(|&i| (0..k).map(move |j| i * k + j)).filter(|&r| self.masks[r]).collect();
+        let mut w = FieldWriter::new();
+        w.f32(self.offset_step);
+        write_block(&mut w, Models::Gaussians, &open, 3, &|r, a| self.offsets[r * 3 + a]);
+        w.into_bytes()
+    }
+
+    /// `AMLP`: the shape, the step exponents, one quantized-Gaussian model per tensor, then
+    /// every parameter in one coded chunk, tensor by tensor.
     fn write_networks(&self) -> Vec<u8> {
         let mut w = FieldWriter::new();
         w.varint(self.feature_dim as u32);
@@ -180,8 +193,9 @@ impl QuantizedAnchors {
             w.u8(m.bias_exponent as u8);
         }
         let tensors: Vec<&Vec<i32>> = self.mlps.iter().flat_map(|m| m.tensors()).collect();
-        let tables: Vec<FrequencyTable> = tensors.iter().map(|t| FrequencyTable::fit(t)).collect();
-        tables.iter().for_each(|t| t.write(&mut w));
+        let models: Vec<GaussianModel> = tensors.iter().map(|t| GaussianModel::fit(t)).collect();
+        models.iter().for_each(|m| m.write(&mut w));
+        let tables: Vec<FrequencyTable> = models.iter().map(|m| m.table()).collect();
         let mut coder = SymbolEncoder::new();
         for (values, table) in tensors.iter().zip(&tables) {
             values.iter().for_each(|&v| coder.value(table, v));
@@ -194,10 +208,10 @@ impl QuantizedAnchors {
     /// every section, `AMLP`, the bound on the anchor count, positions, then the blocks.
     pub(super) fn read_sections(container: &Container, count: usize, stream_len: usize) -> Result<Self, DecodeError> {
         let payload = |tag: Tag| container.section(tag).map(|s| s.payload).ok_or(DecodeError::MissingSection(tag));
-        let payloads = [NETWORKS, ANCHOR_POSITIONS, FEATURES, SCALING, OFFSETS, MASKS].map(payload);
-        let [networks, positions, features, scaling, offsets, masks] = payloads;
-        let (networks, positions, features, scaling, offsets, masks) =
-            (networks?, positions?, features?, scaling?, offsets?, masks?);
+        let payloads = [NETWORKS, ANCHOR_POSITIONS, FEATURES, SCALING, MASKS, OFFSETS].map(payload);
+        let [networks, positions, features, scaling, masks, offsets] = payloads;
+        let (networks, positions, features, scaling, masks, offsets) =
+            (networks?, positions?, features?, scaling?, masks?, offsets?);
         let (feature_dim, k, mlps) = read_networks(networks)?;
         let values = count as u64 * values_per_anchor(feature_dim, k);
         if values > VALUES_PER_BYTE * stream_len as u64 {
@@ -212,10 +226,19 @@ impl QuantizedAnchors {
         }
         let (grid, positions) = read_positions(ANCHOR_POSITIONS, positions, count)?;
         let any: ValueCheck = |_, _| Ok(());
-        let (feature_steps, features) = read_block(FEATURES, features, (1, feature_dim, any), count)?;
-        let (scaling_steps, scaling) = read_block(SCALING, scaling, (1, 6, any), count)?;
-        let (offset_steps, offsets) = read_block(OFFSETS, offsets, (1, 3 * k, any), count)?;
-        let (_, masks) = read_block(MASKS, masks, (0, k, check_mask), count)?;
+        let gaussians = |channels| (Models::Gaussians, 1, channels, any);
+        let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), count)?;
+        let (scaling_steps, scaling) = read_block(SCALING, scaling, gaussians(6), count)?;
+        let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), count)?;
+        let masks: Vec<bool> = masks.into_iter().map(|m| m == 1).collect();
+        let open = masks.iter().filter(|&&m| m).count();
+        let (offset_steps, open_offsets) = read_block(OFFSETS, offsets, gaussians(3), open)?;
+        // Masked neural Gaussians have no offsets in the stream: they are 0.
+        let mut offsets = vec![0; count * k * 3];
+        let mut coded = open_offsets.chunks_exact(3);
+        for (r, _) in masks.iter().enumerate().filter(|(_, m)| **m) {
+            offsets[r * 3..r * 3 + 3].copy_from_slice(coded.next().expect("one triple per open mask"));
+        }
         Ok(Self {
             grid,
             positions,
@@ -227,7 +250,7 @@ impl QuantizedAnchors {
             scaling: scaling.chunks_exact(6).map(|c| std::array::from_fn(|i| c[i])).collect(),
             offset_step: offset_steps[0],
             offsets,
-            masks: masks.into_iter().map(|m| m == 1).collect(),
+            masks,
             mlps,
         })
     }
@@ -256,7 +279,9 @@ fn read_networks(payload: &[u8]) -> Result<(usize, usize, [QuantizedMlp; 3]), De
         .zip([k, 3 * k, 7 * k])
         .flat_map(|(&(hidden, _, _), outputs)| [hidden * inputs, hidden, outputs * hidden, outputs])
         .collect();
-    let tables = (0..sizes.len()).map(|_| FrequencyTable::read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
+    let tables = (0..sizes.len())
+        .map(|_| GaussianModel::read(&mut r).map(GaussianModel::table))
+        .collect::<Result<Vec<_>, FieldError>>()?;
     let coded = |e| DecodeError::coded(NETWORKS, e);
     let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
     let mut tensors = Vec::with_capacity(sizes.len());

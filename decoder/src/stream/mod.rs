@@ -3,6 +3,7 @@
 
 pub mod anchor;
 pub mod entropy;
+pub mod gaussian_model;
 pub mod header;
 pub mod octree;
 pub mod plain;
@@ -62,8 +63,8 @@ const ANCHOR_SECTIONS: [Tag; 8] = [
     anchor::ANCHOR_POSITIONS,
     anchor::FEATURES,
     anchor::SCALING,
-    anchor::OFFSETS,
     anchor::MASKS,
+    anchor::OFFSETS,
     WRAPPER,
 ];
 

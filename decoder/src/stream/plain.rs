@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use super::DecodeError;
 use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
+use super::gaussian_model::GaussianModel;
 use super::octree::{self, MAX_DEPTH, OctreeError};
 use crate::gaussians::{Gaussians, sh_band, sh_coeff_count};
 
@@ -120,7 +121,7 @@ impl PlainGaussians {
         let block = |steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
             let mut w = FieldWriter::new();
             steps.iter().for_each(|&s| w.f32(s));
-            write_block(&mut w, &order, channels, value);
+            write_block(&mut w, Models::Tables, &order, channels, value);
             w.into_bytes()
         };
         sections.push((SCALES, block(&[self.scale_step], 3, &|i, c| self.log_scales[i][c])));
@@ -171,7 +172,7 @@ impl PlainGaussians {
             .par_iter()
             .zip(block_payloads)
             .map(|(&(tag, steps, channels, check), bytes)| match bytes {
-                Some(bytes) => read_block(tag, bytes, (steps, channels, check), count),
+                Some(bytes) => read_block(tag, bytes, (Models::Tables, steps, channels, check), count),
                 None => Ok((vec![], vec![])),
             })
             .collect();
@@ -261,12 +262,51 @@ fn check_rotation_index(channel: usize, value: i32) -> Result<(), String> {
     }
 }
 
-/// Block syntax: one frequency table per channel, then the range-coded values, Gaussian by
-/// Gaussian (in `order`), channel by channel.
-pub(super) fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize, value: &dyn Fn(usize, usize) -> i32) {
-    let tables: Vec<FrequencyTable> =
-        (0..channels).map(|c| FrequencyTable::fit(&order.iter().map(|&i| value(i, c)).collect::<Vec<_>>())).collect();
-    tables.iter().for_each(|t| t.write(w));
+/// How a block's channels are modelled: a frequency table each (SPEC.md section 5.3, the plain
+/// base) or a quantized Gaussian each (section 5.4, the anchor base).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Models {
+    Tables,
+    Gaussians,
+}
+
+impl Models {
+    /// Fits the model of each channel, writes it, and returns its table.
+    fn fit_and_write(self, w: &mut FieldWriter, values: &[i32]) -> FrequencyTable {
+        match self {
+            Models::Tables => {
+                let table = FrequencyTable::fit(values);
+                table.write(w);
+                table
+            }
+            Models::Gaussians => {
+                let model = GaussianModel::fit(values);
+                model.write(w);
+                model.table()
+            }
+        }
+    }
+
+    fn read(self, r: &mut FieldReader) -> Result<FrequencyTable, FieldError> {
+        match self {
+            Models::Tables => FrequencyTable::read(r),
+            Models::Gaussians => GaussianModel::read(r).map(GaussianModel::table),
+        }
+    }
+}
+
+/// Block syntax: one model per channel, then the range-coded values, row by row (in `order`),
+/// channel by channel.
+pub(super) fn write_block(
+    w: &mut FieldWriter,
+    models: Models,
+    order: &[usize],
+    channels: usize,
+    value: &dyn Fn(usize, usize) -> i32,
+) {
+    let tables: Vec<FrequencyTable> = (0..channels)
+        .map(|c| models.fit_and_write(w, &order.iter().map(|&i| value(i, c)).collect::<Vec<_>>()))
+        .collect();
     let mut coder = SymbolEncoder::new();
     for &i in order {
         for (c, table) in tables.iter().enumerate() {
@@ -277,11 +317,11 @@ pub(super) fn write_block(w: &mut FieldWriter, order: &[usize], channels: usize,
 }
 
 /// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
-/// `count` Gaussians, each value passing `check` as it is decoded.
+/// `count` rows, each value passing `check` as it is decoded.
 pub(super) fn read_block(
     tag: Tag,
     payload: &[u8],
-    (steps, channels, check): (usize, usize, ValueCheck),
+    (models, steps, channels, check): (Models, usize, usize, ValueCheck),
     count: usize,
 ) -> Result<Block, DecodeError> {
     let name = String::from_utf8_lossy(&tag.0).into_owned();
@@ -295,7 +335,7 @@ pub(super) fn read_block(
         }
         step_values.push(s);
     }
-    let tables = (0..channels).map(|_| FrequencyTable::read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
+    let tables = (0..channels).map(|_| models.read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
     let coded = |e: EntropyError| DecodeError::coded(tag, e);
     let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
     let mut values = Vec::with_capacity(count * channels);

@@ -97,7 +97,7 @@ mod tests {
         // Voxel 0.1: cells (0,0,0), (1,0,0) twice, (1,0,0), (-2,3,0), (0,0,0).
         let (grid, anchors) = voxel_anchors(&cloud, 0.1).unwrap();
         assert_eq!(anchors.len(), 3);
-        assert_eq!(anchors[0], grid.position([0, 0, 0]));
+        assert_eq!(anchors[0], grid.position([0, 3, 0]), "the grid starts at the smallest cell per axis");
         assert_eq!(anchors[0], [(-2.0f64 * 0.1) as f32, (3.0f64 * 0.1f64) as f32, 0.0]);
         let shape = AnchorShape { feature_dim: 4, offsets_per_anchor: 3, voxel: 0.1 };
         let (model, _) = initial_model(&cloud, shape, 1).unwrap();

@@ -5,4 +5,5 @@
 
 pub mod init;
 pub mod quantize;
+pub mod rate;
 pub mod train;

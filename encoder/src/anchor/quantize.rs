@@ -74,24 +74,34 @@ fn round_all(values: &[f32], step: f32) -> Vec<i32> {
     values.iter().map(|&v| (v / step).round() as i32).collect()
 }
 
-/// The stream content of `model`, whose anchors sit on `grid`.
+/// The stream content of `model`, whose anchors sit on `grid`: anchors with every mask shut
+/// show nothing and are left out, and offsets under a shut mask are not stored (0).
 pub fn quantize(model: &AnchorModel, grid: &PositionGrid, steps: &AnchorSteps) -> Result<QuantizedAnchors> {
     ensure!(model.is_consistent(), "the anchor model is inconsistent");
     let finite = model.features.iter().chain(model.scaling.iter().flatten()).chain(&model.offsets);
     ensure!(finite.into_iter().all(|v| v.is_finite()), "the anchor model has a non-finite attribute");
+    let (f, k) = (model.feature_dim, model.offsets_per_anchor);
+    let kept: Vec<usize> = (0..model.len()).filter(|&i| model.masks[i * k..(i + 1) * k].iter().any(|&m| m)).collect();
+    let rows = |values: &[f32], width: usize| -> Vec<f32> {
+        kept.iter().flat_map(|&i| values[i * width..(i + 1) * width].iter().copied()).collect()
+    };
+    let masks: Vec<bool> = kept.iter().flat_map(|&i| model.masks[i * k..(i + 1) * k].iter().copied()).collect();
+    let mut offsets = round_all(&rows(&model.offsets, 3 * k), steps.offset);
+    offsets.chunks_exact_mut(3).zip(&masks).filter(|(_, open)| !**open).for_each(|(o, _)| o.fill(0));
+    let positions: Vec<[f32; 3]> = kept.iter().map(|&i| model.positions[i]).collect();
     let (e_w, e_b) = (steps.weight_exponent, steps.bias_exponent);
     Ok(QuantizedAnchors {
         grid: *grid,
-        positions: grid_coordinates(&model.positions, grid)?,
-        feature_dim: model.feature_dim,
-        offsets_per_anchor: model.offsets_per_anchor,
+        positions: grid_coordinates(&positions, grid)?,
+        feature_dim: f,
+        offsets_per_anchor: k,
         feature_step: steps.feature,
-        features: round_all(&model.features, steps.feature),
+        features: round_all(&rows(&model.features, f), steps.feature),
         scaling_step: steps.scaling,
-        scaling: model.scaling.iter().map(|s| s.map(|v| (v / steps.scaling).round() as i32)).collect(),
+        scaling: kept.iter().map(|&i| model.scaling[i].map(|v| (v / steps.scaling).round() as i32)).collect(),
         offset_step: steps.offset,
-        offsets: round_all(&model.offsets, steps.offset),
-        masks: model.masks.clone(),
+        offsets,
+        masks,
         mlps: [&model.opacity, &model.color, &model.covariance].map(|m| QuantizedMlp::quantize(m, e_w, e_b)),
     })
 }
@@ -112,5 +122,37 @@ mod tests {
         assert!(grid_coordinates(&[[0.1, 1.0, 2.5]], &grid).is_err(), "off the grid");
         assert_eq!(anchor_grid(&[[2, 2, 2]], 1.0).unwrap().0.depth, 1);
         assert!(anchor_grid(&[[0, 0, 0], [1 << 25, 0, 0]], 1.0).is_err());
+    }
+
+    #[test]
+    fn shut_masks_drop_offsets_and_anchors() {
+        let (grid, q) = anchor_grid(&[[0, 0, 0], [1, 0, 0], [0, 1, 0]], 0.5).unwrap();
+        let mlp = |outputs| pwgs_decoder::anchor::Mlp {
+            inputs: 5,
+            hidden: 2,
+            outputs,
+            w1: vec![0.1; 10],
+            b1: vec![0.0; 2],
+            w2: vec![0.2; 2 * outputs],
+            b2: vec![0.0; outputs],
+        };
+        let model = AnchorModel {
+            feature_dim: 1,
+            offsets_per_anchor: 2,
+            positions: q.iter().map(|&c| grid.position(c)).collect(),
+            features: vec![0.5, 1.0, 1.5],
+            scaling: vec![[0.0; 6]; 3],
+            offsets: (0..18).map(|v| v as f32).collect(),
+            masks: vec![true, false, false, false, false, true],
+            opacity: mlp(2),
+            color: mlp(6),
+            covariance: mlp(14),
+        };
+        let steps = AnchorSteps { feature: 0.5, scaling: 1.0, offset: 1.0, weight_exponent: -8, bias_exponent: -8 };
+        let content = quantize(&model, &grid, &steps).unwrap();
+        assert_eq!(content.positions, vec![[0, 0, 0], [0, 1, 0]], "the anchor with both masks shut is gone");
+        assert_eq!(content.features, vec![1, 3]);
+        assert_eq!(content.masks, vec![true, false, false, true]);
+        assert_eq!(content.offsets, vec![0, 1, 2, 0, 0, 0, 0, 0, 0, 15, 16, 17]);
     }
 }

@@ -7,8 +7,14 @@
 //! uniform noise of their quantization steps (the usual proxy for rounding, as in HAC), so that
 //! the model the stream stores, rounded, renders as well as the trained one.
 //!
-//! Anchors stay where initialization put them; growing and pruning anchors, learned masks and
-//! the rate term come next (issue 15).
+//! With a rate term (`λ`), the loss adds λ x the mean bits per stored value under a factorized
+//! Gaussian model ([`super::rate`]), and each neural Gaussian gets a learned mask (HAC's
+//! straight-through `sigmoid(logit) > 0.01`): a masked Gaussian is not rendered and its offsets
+//! cost nothing, so the rate pushes masks shut wherever a Gaussian is not worth its bits
+//! (HAC++), and an anchor with every mask shut leaves the stream.
+//!
+//! Anchors stay where initialization put them; growing and pruning anchors and the hash-grid
+//! context model come next (issue 15).
 
 use anyhow::{Result, bail};
 use burn::tensor::activation::{log_sigmoid, sigmoid};
@@ -21,6 +27,7 @@ use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 
 use super::quantize::AnchorSteps;
+use super::rate::factorized_bits;
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::splat_op::{SplatView, render};
 use crate::train::adam::direction;
@@ -28,18 +35,31 @@ use crate::train::params::tensor_values;
 
 /// The trained tensors, in this order: features [N, F], scaling [N, 6], offsets [N, 3K], then
 /// for each MLP (opacity, color, covariance) W1 [in, hidden], b1 [1, hidden], W2 [hidden, out],
-/// b2 [1, out].
-const PARAMETERS: usize = 15;
+/// b2 [1, out]; then mask logits [N, K]; then the rate model's mean and log scale per channel
+/// of features [1, F], scaling [1, 6] and offsets [1, 3] (one per axis, as the stream's tables).
+const PARAMETERS: usize = 22;
+
+/// Index of the mask logits among the parameters, and of the first rate-model tensor.
+const MASK_LOGITS: usize = 15;
+const RATE_MODEL: usize = 16;
+
+/// A mask is open while sigmoid(logit) > 0.01, i.e. logit > ln(0.01 / 0.99).
+const MASK_THRESHOLD_LOGIT: f32 = -4.595_12;
+
+/// Initial mask logit (sigmoid 0.73, HAC's initialization).
+const INITIAL_MASK_LOGIT: f32 = 1.0;
 
 /// Learning rates at the start and the end of training (log-linear decay), per parameter
 /// group, from Scaffold-GS; the offsets' rates are also scaled by the scene extent.
-const RATES: [[f32; 2]; 6] = [
+const RATES: [[f32; 2]; 8] = [
     [0.0075, 0.0075], // features
     [0.007, 0.007],   // scaling
     [0.01, 1e-4],     // offsets
     [0.002, 2e-5],    // opacity MLP
     [0.008, 5e-5],    // color MLP
     [0.004, 0.004],   // covariance MLP
+    [0.01, 1e-4],     // mask logits (HAC)
+    [0.005, 0.005],   // rate model
 ];
 
 /// Weight of the neural Gaussians' mean volume in the loss (Scaffold-GS).
@@ -59,6 +79,8 @@ pub struct AnchorTrainer {
     /// Quantization steps of features, scaling and offsets, and the iteration from which
     /// their noise is on.
     noise: Option<(AnchorSteps, u32)>,
+    /// λ and the iteration from which the rate term and the learned masks are on.
+    rate_term: Option<(f32, u32)>,
     pub iteration: u32,
     pub iterations: u32,
 }
@@ -70,6 +92,10 @@ pub struct AnchorStep {
     pub psnr: f32,
     /// Neural Gaussians rendered.
     pub gaussians: usize,
+    /// Mean bits per stored value under the rate model, while the rate term is on.
+    pub bits_per_value: Option<f32>,
+    /// Open masks, out of N x K.
+    pub open_masks: usize,
 }
 
 fn host_tensor(values: &[f32], shape: [usize; 2], device: &Device) -> Tensor<2> {
@@ -137,6 +163,16 @@ impl AnchorTrainer {
         for m in [&initial.opacity, &initial.color, &initial.covariance] {
             params.extend(mlp_tensors(m, &device));
         }
+        let logits: Vec<f32> = initial
+            .masks
+            .iter()
+            .map(|&open| if open { INITIAL_MASK_LOGIT } else { 2.0 * MASK_THRESHOLD_LOGIT })
+            .collect();
+        params.push(host_tensor(&logits, [n, k], &device));
+        for width in [f, 6, 3] {
+            params.push(Tensor::zeros([1, width], &device));
+            params.push(Tensor::zeros([1, width], &device));
+        }
         let views = data
             .train
             .iter()
@@ -156,6 +192,7 @@ impl AnchorTrainer {
             extent: data.normalization.scale,
             rng: SplitMix64(seed),
             noise: None,
+            rate_term: None,
             iteration: 0,
             iterations,
         })
@@ -165,6 +202,29 @@ impl AnchorTrainer {
     pub fn with_quantization_noise(mut self, steps: AnchorSteps, from: u32) -> Self {
         self.noise = Some((steps, from));
         self
+    }
+
+    /// Adds λ x the rate to the loss and learns the masks from iteration `from` on (needs the
+    /// quantization noise: the rate is that of the noisy values).
+    pub fn with_rate(mut self, lambda: f32, from: u32) -> Self {
+        self.rate_term = Some((lambda, from));
+        self
+    }
+
+    /// λ, while the rate term is on.
+    fn lambda(&self) -> Option<f32> {
+        let (lambda, from) = self.rate_term?;
+        (self.iteration >= from && self.noise.is_some()).then_some(lambda)
+    }
+
+    /// The masks as the stream stores them: fixed ones until the rate term starts learning them.
+    fn open_masks(&self) -> Vec<bool> {
+        match self.rate_term {
+            Some(_) => {
+                tensor_values(self.params[MASK_LOGITS].clone()).iter().map(|&l| l > MASK_THRESHOLD_LOGIT).collect()
+            }
+            None => self.masks.clone(),
+        }
     }
 
     /// Uniform noise in ±step/2 shaped like parameter `i`, or `None` while noise is off.
@@ -183,6 +243,8 @@ impl AnchorTrainer {
     fn rate(&self, i: usize) -> f32 {
         let group = match i {
             0..3 => i,
+            MASK_LOGITS => 6,
+            RATE_MODEL.. => 7,
             _ => 3 + (i - 3) / 4,
         };
         let [start, end] = RATES[group];
@@ -209,9 +271,17 @@ impl AnchorTrainer {
         let d = (v.clone() * v.clone()).sum_dim(1).sqrt();
         let input = Tensor::cat(vec![attributes[0].clone(), (v / d.clone()).autodiff(), d.autodiff()], 1);
         let alpha = forward(input.clone(), &tracked[3..7]).tanh();
+        let lambda = self.lambda();
+        let masks = if lambda.is_some() { self.open_masks() } else { self.masks.clone() };
+        let open_masks = masks.iter().filter(|&&m| m).count();
+        // Straight-through masks: 1 or 0 forward, sigmoid's gradient backward.
+        let soft_masks = sigmoid(tracked[MASK_LOGITS].clone());
+        let hard_masks =
+            host_tensor(&masks.iter().map(|&m| f32::from(u8::from(m))).collect::<Vec<_>>(), [n, k], &device);
+        let mask_gate = soft_masks.clone() - soft_masks.detach() + hard_masks.autodiff();
         // The kept neural Gaussians: positive opacity and an open mask.
         let alpha_host = tensor_values(alpha.clone().inner());
-        let kept: Vec<i64> = (0..n * k).filter(|&j| self.masks[j] && alpha_host[j] > 0.0).map(|j| j as i64).collect();
+        let kept: Vec<i64> = (0..n * k).filter(|&j| masks[j] && alpha_host[j] > 0.0).map(|j| j as i64).collect();
         if kept.is_empty() {
             bail!("no anchor gives a visible Gaussian at iteration {}", self.iteration);
         }
@@ -221,6 +291,7 @@ impl AnchorTrainer {
         let per_anchor = |t: Tensor<2>, width: usize| {
             per_gaussian(t.unsqueeze_dim::<3>(1).repeat_dim(1, k).reshape([n * k, width]), width)
         };
+        let alpha = if lambda.is_some() { alpha * mask_gate.clone() } else { alpha };
         let alpha = per_gaussian(alpha, 1).clamp(1e-6, 1.0 - 1e-6);
         let color = per_gaussian(sigmoid(forward(input.clone(), &tracked[7..11])), 3);
         let cov = per_gaussian(forward(input, &tracked[11..15]), 7);
@@ -241,7 +312,13 @@ impl AnchorTrainer {
         let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
         let structural = ssim(to_nchw(image), to_nchw(target), SsimConvention::ZeroPadded);
         let volume = log_scales.sum_dim(1).exp().mean();
-        let loss = l1 * 0.8 + (structural.neg() + 1.0) * 0.2 + volume * VOLUME_WEIGHT;
+        let mut loss = l1 * 0.8 + (structural.neg() + 1.0) * 0.2 + volume * VOLUME_WEIGHT;
+        let mut bits_per_value = None;
+        if let Some(lambda) = lambda {
+            let bpp = self.mean_bits(&attributes, &tracked, mask_gate, &masks);
+            bits_per_value = Some(tensor_values(bpp.clone().inner())[0]);
+            loss = loss + bpp * lambda;
+        }
         let grads = loss.backward();
         let loss_value = tensor_values(loss.inner())[0];
         if !loss_value.is_finite() {
@@ -254,7 +331,28 @@ impl AnchorTrainer {
             self.params[i] = self.params[i].clone() - direction(grad, first, second, self.iteration + 1) * rate;
         }
         self.iteration += 1;
-        Ok(AnchorStep { loss: loss_value, psnr: -10.0 * tensor_values(mse)[0].log10(), gaussians: m })
+        let psnr = -10.0 * tensor_values(mse)[0].log10();
+        Ok(AnchorStep { loss: loss_value, psnr, gaussians: m, bits_per_value, open_masks })
+    }
+
+    /// Mean bits per stored value: features and scaling of every anchor with an open mask,
+    /// offsets of every open mask (gated, so that their bits reach the masks), over all N x
+    /// (F + 6 + 3K) values.
+    fn mean_bits(&self, attributes: &[Tensor<2>], tracked: &[Tensor<2>], gate: Tensor<2>, masks: &[bool]) -> Tensor<1> {
+        let [n, f, k] = self.shape;
+        let (steps, _) = self.noise.expect("the rate needs the quantization steps");
+        let model = |j: usize| (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone());
+        let anchor_open: Vec<f32> = masks.chunks_exact(k).map(|m| f32::from(u8::from(m.iter().any(|&o| o)))).collect();
+        let anchor_open = host_tensor(&anchor_open, [n, 1], &self.positions.device()).autodiff();
+        let (mean, scale) = model(0);
+        let features = factorized_bits(attributes[0].clone(), mean, scale, steps.feature).sum_dim(1);
+        let (mean, scale) = model(1);
+        let scaling = factorized_bits(attributes[1].clone(), mean, scale, steps.scaling).sum_dim(1);
+        let (mean, scale) = model(2);
+        let offsets = factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps.offset);
+        let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
+        let total = ((features + scaling) * anchor_open + offsets).sum();
+        total / (n * (f + 6 + 3 * k)) as f32
     }
 
     /// The current model, as a decoder holds it.
@@ -270,7 +368,7 @@ impl AnchorTrainer {
             features: rows(0),
             scaling: scaling.chunks_exact(6).map(|c| [c[0], c[1], c[2], c[3], c[4], c[5]]).collect(),
             offsets: rows(2),
-            masks: self.masks.clone(),
+            masks: self.open_masks(),
             opacity: mlp_of(&self.params[3..7]),
             color: mlp_of(&self.params[7..11]),
             covariance: mlp_of(&self.params[11..15]),

@@ -32,6 +32,9 @@ pub struct AnchorJob {
     pub steps: AnchorSteps,
     /// Train with quantization noise (from a tenth of the iterations on).
     pub quantization_noise: bool,
+    /// λ of the rate term (from 30% of the iterations on, with learned masks); `None`: no rate
+    /// term, every mask open.
+    pub lambda: Option<f32>,
     /// Write the stream here.
     pub output: Option<PathBuf>,
     pub eval: Option<EvalOptions>,
@@ -68,6 +71,9 @@ pub struct AnchorReport {
     /// Neural Gaussians rendered at the last step.
     pub last_step_gaussians: usize,
     pub quantization_noise: bool,
+    pub lambda: Option<f32>,
+    /// Anchors in the stream (those with an open mask).
+    pub stream_anchors: usize,
     /// The stream (also when none was written to a file: the evaluation renders its decoding).
     pub stream: AnchorStreamSummary,
     pub mean: Option<MeanScore>,
@@ -94,6 +100,10 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if job.quantization_noise {
         trainer = trainer.with_quantization_noise(job.steps, job.iterations / 10);
     }
+    if let Some(lambda) = job.lambda {
+        anyhow::ensure!(job.quantization_noise, "the rate term (--lambda) needs the quantization noise");
+        trainer = trainer.with_rate(lambda, job.iterations * 3 / 10);
+    }
     let start = Instant::now();
     let mut last_step_gaussians = 0;
     while trainer.iteration < trainer.iterations {
@@ -102,9 +112,10 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let it = trainer.iteration;
         if it % 100 == 0 || it == trainer.iterations {
             let rate = f64::from(it) / start.elapsed().as_secs_f64().max(1e-9);
+            let bits = step.bits_per_value.map(|b| format!("  {b:.3} bits/value")).unwrap_or_default();
             eprintln!(
-                "iteration {it}/{}  loss {:.4}  PSNR {:.2}  Gaussians {}  {rate:.2} it/s",
-                trainer.iterations, step.loss, step.psnr, step.gaussians
+                "iteration {it}/{}  loss {:.4}  PSNR {:.2}  Gaussians {}  open masks {}{bits}  {rate:.2} it/s",
+                trainer.iterations, step.loss, step.psnr, step.gaussians, step.open_masks
             );
         }
     }
@@ -157,6 +168,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         training_seconds,
         last_step_gaussians,
         quantization_noise: job.quantization_noise,
+        lambda: job.lambda,
+        stream_anchors: content.len(),
         stream: stream_summary,
         mean,
         views,
