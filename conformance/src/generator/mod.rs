@@ -6,6 +6,7 @@
 //!
 //! `cargo run -p pwgs-conformance --bin regenerate` writes the files (README.md).
 
+mod anchor_vectors;
 pub mod content;
 mod invalid_cameras;
 mod invalid_streams;
@@ -56,12 +57,13 @@ pub struct Refusal {
 /// Every generated file: the synthetic vectors and the invalid folder.
 pub fn generate() -> Result<Files> {
     let mut files = Files::new();
-    for vector in valid_vectors::vectors()? {
+    for vector in valid_vectors::vectors()?.into_iter().chain(anchor_vectors::vectors()) {
         let name = vector.name;
         add_vector(&mut files, vector).with_context(|| format!("vector {name}"))?;
     }
     let mut refusals = ExpectedRefusals::new();
-    for r in invalid_streams::refusals().into_iter().chain(invalid_cameras::refusals()) {
+    let invalid = invalid_streams::refusals().into_iter().chain(anchor_vectors::refusals());
+    for r in invalid.chain(invalid_cameras::refusals()) {
         let entry = ExpectedRefusal { clause: r.clause.to_string(), error: r.error, description: r.description };
         ensure!(refusals.insert(r.file.clone(), entry).is_none(), "invalid file {} made twice", r.file);
         files.insert(PathBuf::from("invalid").join(&r.file), r.bytes);

@@ -1,0 +1,197 @@
+//! Anchor-base vectors (SPEC.md section 12): a synthetic anchor model drawn as integers, whose
+//! networks make visible neural Gaussians in front of the suite's cameras, and streams that
+//! break its syntax.
+
+use pwgs_bitstream::{Container, Tag, reseal, write_container};
+use pwgs_decoder::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::header::{BaseKind, Header};
+use pwgs_decoder::stream::plain::PositionGrid;
+use pwgs_decoder::stream::{self, PADDING};
+
+use super::content::Draws;
+use super::{Refusal, Vector};
+
+/// F and K of the vectors.
+const FEATURES: usize = 6;
+const OFFSETS: usize = 4;
+
+fn mlp(draws: &mut Draws, hidden: usize, outputs: usize, bias: &dyn Fn(usize) -> [i32; 2]) -> QuantizedMlp {
+    let inputs = FEATURES + 4;
+    let mut many = |n: usize, range: [i32; 2]| (0..n).map(|_| draws.i32(range)).collect::<Vec<_>>();
+    QuantizedMlp {
+        hidden,
+        weight_exponent: -7,
+        bias_exponent: -6,
+        w1: many(hidden * inputs, [-40, 40]),
+        b1: many(hidden, [0, 30]),
+        w2: many(outputs * hidden, [-40, 40]),
+        b2: (0..outputs).map(|o| draws.i32(bias(o))).collect(),
+    }
+}
+
+/// `n` anchors in distinct cells of a 5-level grid over [-1, 1]^3, every fifth mask shut.
+pub fn synthetic_anchors(n: usize, seed: u64) -> QuantizedAnchors {
+    let mut draws = Draws::new(seed);
+    let mut positions: Vec<[u32; 3]> = Vec::with_capacity(n);
+    while positions.len() < n {
+        let p = draws.point(5);
+        if !positions.contains(&p) {
+            positions.push(p);
+        }
+    }
+    let k = OFFSETS;
+    // Opacity biases mostly positive (visible), rotation w strongly positive, scale logits 0.
+    let covariance_bias = |o: usize| match o % 7 {
+        3 => [40, 64],
+        0..3 => [-10, 10],
+        _ => [-20, 20],
+    };
+    QuantizedAnchors {
+        grid: PositionGrid { origin: [-1.0, -1.0, -1.0], cell: 0.0625, depth: 5 },
+        positions,
+        feature_dim: FEATURES,
+        offsets_per_anchor: k,
+        feature_step: 0.125,
+        features: (0..n * FEATURES).map(|_| draws.i32([-12, 12])).collect(),
+        scaling_step: 0.0625,
+        // Offset scale e^-2.5 ≈ 0.08, Gaussian scale e^-3.5 ≈ 0.03 (log values -40, -56).
+        scaling: (0..n)
+            .map(|_| std::array::from_fn(|c| draws.i32(if c < 3 { [-44, -36] } else { [-60, -52] })))
+            .collect(),
+        offset_step: 0.25,
+        offsets: (0..n * 3 * k).map(|r| if (r / 3) % 5 == 4 { 0 } else { draws.i32([-6, 6]) }).collect(),
+        masks: (0..n * k).map(|r| r % 5 != 4).collect(),
+        mlps: [
+            mlp(&mut draws, 8, k, &|_| [-10, 60]),
+            mlp(&mut draws, 8, 3 * k, &|_| [-60, 60]),
+            mlp(&mut draws, 8, 7 * k, &covariance_bias),
+        ],
+    }
+}
+
+pub fn header(content: &QuantizedAnchors) -> Header {
+    Header {
+        base: BaseKind::Anchors,
+        gaussian_count: content.len() as u32,
+        sh_degree: 0,
+        center: [0.0; 3],
+        scale: 1.0,
+        background: [0.1, 0.1, 0.1],
+    }
+}
+
+pub fn encode(content: &QuantizedAnchors) -> Vec<u8> {
+    stream::encode(&header(content), content, None).expect("the synthetic anchors fit the octree")
+}
+
+pub fn vectors() -> Vec<Vector> {
+    vec![Vector {
+        name: "anchors",
+        description: format!(
+            "Base kind 1: 120 anchors (F = {FEATURES}, K = {OFFSETS}, every fifth mask shut) with networks of width 8: \
+             every anchor section, Gaussian models for features, scaling, offsets and weights, and the neural \
+             Gaussians each camera derives."
+        ),
+        clauses: vec![
+            "S12.1-networks",
+            "S12.2-positions",
+            "S12.3-blocks",
+            "S12.4-neural",
+            "S12.6-hash",
+            "S5.4-gaussian",
+        ],
+        stream: encode(&synthetic_anchors(120, 31)),
+        cameras: &["front", "side"],
+    }]
+}
+
+/// The payload of `tag` in `bytes` replaced by `edit`'s, CRCs sealed again.
+fn edited(bytes: &[u8], tag: Tag, edit: impl Fn(&mut Vec<u8>)) -> Vec<u8> {
+    let container = Container::parse(bytes).expect("a valid stream");
+    let mut sections: Vec<(Tag, Vec<u8>)> = container.sections.iter().map(|s| (s.tag, s.payload.to_vec())).collect();
+    sections.iter_mut().filter(|(t, _)| *t == tag).for_each(|(_, p)| edit(p));
+    let mut out = write_container(&sections);
+    reseal(&mut out);
+    out
+}
+
+pub fn refusals() -> Vec<Refusal> {
+    let valid = encode(&synthetic_anchors(40, 32));
+    let refusal = |file: &str, clause, error: &str, description: &str, bytes| Refusal {
+        file: format!("{file}.pwb"),
+        clause,
+        error: error.into(),
+        description: description.into(),
+        bytes,
+    };
+    // 400 anchors with F = 200 and all-zero values: 200 + 6 + 16 = 222 values each, more than
+    // 64 per byte of the stream once its padding is removed.
+    let mut wide = synthetic_anchors(400, 33);
+    wide.feature_dim = 200;
+    wide.features = vec![0; 400 * 200];
+    wide.scaling.fill([0; 6]);
+    wide.offsets.fill(0);
+    for m in &mut wide.mlps {
+        m.w1 = vec![0; m.hidden * 204];
+        [&mut m.b1, &mut m.w2, &mut m.b2].into_iter().for_each(|t| t.fill(0));
+    }
+    let unpadded = {
+        let padded = encode(&wide);
+        let container = Container::parse(&padded).expect("a valid stream");
+        let sections: Vec<(Tag, Vec<u8>)> =
+            container.sections.iter().filter(|s| s.tag != PADDING).map(|s| (s.tag, s.payload.to_vec())).collect();
+        write_container(&sections)
+    };
+    vec![
+        refusal(
+            "anchor-sh-degree",
+            "S4-sh-degree",
+            "section 'HEAD', field `sh degree` … is not 0",
+            "An anchor stream (base 1) whose header declares SH degree 1.",
+            edited(&valid, Tag::HEAD, |p| p[5] = 1),
+        ),
+        refusal(
+            "anchor-offsets-zero",
+            "S12.1-networks",
+            "section 'AMLP', field `offsets per anchor` … 0 is outside 1..=64",
+            "AMLP declares 0 offsets per anchor.",
+            edited(&valid, anchor::NETWORKS, |p| p[1] = 0),
+        ),
+        refusal(
+            "anchor-values-per-byte",
+            "S12.1-work-bound",
+            "section 'AMLP': 400 anchors of 222 values each exceed the stream's length",
+            "400 anchors of F = 200 in a stream stripped of its padding: more than 64 values per byte.",
+            unpadded,
+        ),
+        refusal(
+            "anchor-missing-masks",
+            "S12-sections",
+            "the stream has no 'AMSK' section",
+            "An anchor stream without its AMSK section.",
+            {
+                let container = Container::parse(&valid).expect("a valid stream");
+                let sections: Vec<(Tag, Vec<u8>)> = container
+                    .sections
+                    .iter()
+                    .filter(|s| s.tag != anchor::MASKS)
+                    .map(|s| (s.tag, s.payload.to_vec()))
+                    .collect();
+                write_container(&sections)
+            },
+        ),
+        refusal(
+            "anchor-plain-section",
+            "S12-sections",
+            "POSN",
+            "An anchor stream that also holds the plain base's critical POSN section.",
+            {
+                let container = Container::parse(&valid).expect("a valid stream");
+                let mut sections: Vec<(Tag, Vec<u8>)> =
+                    container.sections.iter().map(|s| (s.tag, s.payload.to_vec())).collect();
+                sections.push((Tag(*b"POSN"), vec![0; 16]));
+                write_container(&sections)
+            },
+        ),
+    ]
+}
