@@ -133,9 +133,18 @@ impl AnchorModel {
     /// The Gaussians `camera` sees: for each anchor, its kept neural Gaussians (degree-0
     /// colors), in anchor and offset order.
     pub fn gaussians_for(&self, camera: &Camera) -> Gaussians {
+        let mut out = Gaussians::with_degree(0);
+        self.visit_neural_gaussians(camera, |_, g| {
+            out.push(g.mean, g.log_scale, g.rotation, g.opacity_logit, &g.rgb.map(rgb_to_sh_dc))
+        });
+        out
+    }
+
+    /// Calls `visit` with `(anchor * K + offset, Gaussian)` for every neural Gaussian `camera`
+    /// keeps, in anchor and offset order.
+    pub fn visit_neural_gaussians(&self, camera: &Camera, mut visit: impl FnMut(usize, NeuralGaussian)) {
         let (f, k) = (self.feature_dim, self.offsets_per_anchor);
         let center = camera.center().to_array();
-        let mut out = Gaussians::with_degree(0);
         let mut input = vec![0.0f32; f + 4];
         let mut hidden = vec![0.0f32; self.opacity.hidden.max(self.color.hidden).max(self.covariance.hidden)];
         let (mut alpha, mut color, mut cov) = (vec![0.0f32; k], vec![0.0f32; 3 * k], vec![0.0f32; 7 * k]);
@@ -162,16 +171,33 @@ impl AnchorModel {
                     continue;
                 }
                 let o = &self.offsets[(i * k + j) * 3..][..3];
-                let mean = [0, 1, 2].map(|c| a[c] + o[c] * offset_scale[c]);
                 let q = &cov[7 * j..7 * j + 7];
-                // log(exp(s) * sigmoid(q)) = s - log(1 + exp(-q)).
-                let log_scale = [0, 1, 2].map(|c| s[3 + c] - ln_f64(1.0 + f64::from(exp_f32(-q[c]))) as f32);
-                let rgb = [0, 1, 2].map(|c| rgb_to_sh_dc(sigmoid(color[3 * j + c])));
-                out.push(mean, log_scale, [q[3], q[4], q[5], q[6]], opacity_logit_of_tanh(alpha[j]), &rgb);
+                visit(
+                    i * k + j,
+                    NeuralGaussian {
+                        mean: [0, 1, 2].map(|c| a[c] + o[c] * offset_scale[c]),
+                        // log(exp(s) * sigmoid(q)) = s - log(1 + exp(-q)).
+                        log_scale: [0, 1, 2].map(|c| s[3 + c] - ln_f64(1.0 + f64::from(exp_f32(-q[c]))) as f32),
+                        rotation: [q[3], q[4], q[5], q[6]],
+                        opacity_logit: opacity_logit_of_tanh(alpha[j]),
+                        rgb: [0, 1, 2].map(|c| sigmoid(color[3 * j + c])),
+                    },
+                );
             }
         }
-        out
     }
+}
+
+/// One neural Gaussian as a view derives it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NeuralGaussian {
+    pub mean: [f32; 3],
+    pub log_scale: [f32; 3],
+    /// Not normalized.
+    pub rotation: [f32; 4],
+    pub opacity_logit: f32,
+    /// View-dependent color in [0, 1].
+    pub rgb: [f32; 3],
 }
 
 fn sigmoid(x: f32) -> f32 {

@@ -2,6 +2,7 @@
 //! the normative computations the encoder calls instead of re-implementing them.
 
 pub mod anchor;
+pub mod anchor_export;
 pub mod atomic_file;
 pub mod camera;
 pub mod camera_json;

@@ -10,11 +10,14 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_dataset::{LoadOptions, load_cameras};
+use pwgs_decoder::anchor::AnchorModel;
+use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians, sphere_cameras};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::scene::Scene;
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream;
-use pwgs_decoder::stream::header::BaseKind;
+use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::residual_picture;
 
@@ -68,9 +71,15 @@ struct DecodeArgs {
     /// Output PNG (--view) or folder (--views).
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Write the decoded Gaussians as an INRIA PLY.
+    /// Write the decoded Gaussians as an INRIA PLY. An anchor base is turned into standard
+    /// Gaussians with SH colors of degree 3, fitted over --fit-views (or cameras on a sphere
+    /// around the scene), and the PSNR of the export against the anchor renders is printed.
     #[arg(long)]
     export_ply: Option<PathBuf>,
+    /// With --export-ply of an anchor base: fit the colors over this scene folder's training
+    /// cameras (at --downscale), as the encoder saw them.
+    #[arg(long, requires = "export_ply")]
+    fit_views: Option<PathBuf>,
     /// Show the base render only, without the perceptual wrapper the stream carries.
     #[arg(long)]
     no_wrapper: bool,
@@ -175,7 +184,14 @@ fn decode(args: DecodeArgs) -> Result<()> {
         println!("{}", scene.attribute_hash());
     }
     if let Some(ply) = &args.export_ply {
-        let gaussians = scene.plain_gaussians().context("--export-ply: this base has no view-independent Gaussians")?;
+        let exported;
+        let gaussians = match &scene.base {
+            Base::Plain(g) => g,
+            Base::Anchors(model) => {
+                exported = export_anchors(model, &decoded.header, args.fit_views.as_deref(), args.downscale, scene)?;
+                &exported
+            }
+        };
         pwgs_decoder::ply::write_gaussians(ply, gaussians)?;
         eprintln!("wrote {}", ply.display());
     }
@@ -221,6 +237,41 @@ fn render_to(
     }
     eprintln!("wrote {} ({}x{}) in {:.3} s", out.display(), camera.width, camera.height, start.elapsed().as_secs_f64());
     Ok(())
+}
+
+/// Standard Gaussians for an anchor base, fitted over the training cameras of `fit_views` or
+/// over 64 cameras on a sphere of the scene's scale; prints how faithful they are.
+fn export_anchors(
+    model: &AnchorModel,
+    header: &Header,
+    fit_views: Option<&Path>,
+    downscale: u32,
+    scene: &Scene,
+) -> Result<Gaussians> {
+    let cameras: Vec<Camera> = match fit_views {
+        Some(folder) => {
+            let options = LoadOptions { downscale, ..Default::default() };
+            let data = load_cameras(folder, &options)
+                .with_context(|| format!("cannot load the scene {}", folder.display()))?;
+            data.train.iter().map(|v| v.camera).collect()
+        }
+        None => sphere_cameras(header.center, header.scale, 64, 256),
+    };
+    if cameras.is_empty() {
+        bail!("--export-ply: no cameras to fit the anchor base's colors over");
+    }
+    let export = export_gaussians(model, &cameras);
+    let checked = &cameras[..cameras.len().min(8)];
+    let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
+    eprintln!(
+        "exported {} Gaussians (SH degree 3) from {} anchors, fitted over {} views; PSNR {psnr:.2} dB against the \
+         anchor renders of {} of them",
+        export.len(),
+        model.len(),
+        cameras.len(),
+        checked.len()
+    );
+    Ok(export)
 }
 
 /// The views of `pwdec --views`.

@@ -50,6 +50,35 @@ fn renders_views_exports_ply_and_prints_info() {
     }
 }
 
+/// An anchor stream: its hash with any thread count, its info, and its export as standard
+/// Gaussians of SH degree 3 with the agreement it states.
+#[test]
+fn anchor_streams_hash_show_their_sections_and_export_standard_gaussians() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance/vectors/anchors");
+    let stream = dir.join("stream.pwb");
+    let s = stream.to_str().unwrap();
+    let expected: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("expected.json")).unwrap()).unwrap();
+    for threads in ["1", "3"] {
+        let out = pwdec(&[s, "--hash", "--threads", threads]);
+        assert_eq!(stdout(&out).trim(), expected["attribute_sha256"].as_str().unwrap(), "{threads} threads");
+    }
+    let info = stdout(&pwdec(&["info", s]));
+    for needle in ["base          anchor", "anchors       120", "'AMLP'", "'AOFF'"] {
+        assert!(info.contains(needle), "`{needle}` missing from:\n{info}");
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let ply = tmp.path().join("export.ply");
+    let out = pwdec(&[s, "--export-ply", ply.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{stderr}");
+    let exported = pwgs_decoder::ply::read_gaussians(&ply).unwrap().gaussians;
+    assert_eq!(exported.sh_degree, 3);
+    assert!(exported.len() > 100 && exported.len() <= 120 * 4, "{} Gaussians", exported.len());
+    let psnr: f64 = stderr.split("PSNR ").nth(1).and_then(|t| t.split(' ').next()).unwrap().parse().unwrap();
+    assert!(psnr > 20.0, "the export agrees with the anchor renders to only {psnr} dB: {stderr}");
+}
+
 #[test]
 fn bad_input_is_a_clear_error_and_leaves_outputs_alone() {
     let tmp = tempfile::tempdir().unwrap();
