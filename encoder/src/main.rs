@@ -388,11 +388,7 @@ impl EncodeArgs {
 
     /// `--base anchor`: the anchor training job, refusing what the anchor base cannot do yet.
     fn anchor_job(&self, scene: &Path) -> Result<AnchorJob> {
-        let unsupported = [
-            (self.wrapper.wrapper, "--wrapper"),
-            (self.init_ply.is_some(), "--init-ply"),
-            (self.export_ply.is_some(), "--export-ply"),
-        ];
+        let unsupported = [(self.init_ply.is_some(), "--init-ply"), (self.export_ply.is_some(), "--export-ply")];
         if let Some((_, what)) = unsupported.iter().find(|(set, _)| *set) {
             bail!(
                 "--base anchor does not support {what} yet (issue 15); it trains, writes the stream (-o) and evaluates (--eval, --report)"
@@ -410,6 +406,7 @@ impl EncodeArgs {
             steps: AnchorSteps::default().scaled(self.anchor_step_scale),
             quantization_noise: !self.no_quantization_noise,
             lambda: (self.lambda > 0.0).then_some(self.lambda),
+            wrapper: self.wrapper.training(self.iters, self.seed, self.weight_dirs())?,
             output: self.output.clone(),
             eval: self.eval_options(),
             report: self.report.clone(),

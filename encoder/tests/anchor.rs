@@ -93,9 +93,53 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     // What the anchor base cannot do yet is refused before any training.
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let stream = dir("w.pwb");
-    args.extend(["-o", &stream, "--wrapper"]);
+    args.extend(["-o", &stream, "--export-ply", "x.ply"]);
     let out = pwenc(&args);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--wrapper"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--export-ply"));
     assert!(!std::path::Path::new(&stream).exists());
+}
+
+/// The perceptual wrapper trains on the anchor base as on the plain one: the stream carries it
+/// and its decoded renders differ from the base's.
+#[test]
+fn pwenc_trains_the_wrapper_on_anchors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let pwenc = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().unwrap();
+    let out = pwenc(&["generate-scene", &dir("scene"), "--width", "80", "--height", "64", "--views", "9"]);
+    assert!(out.status.success());
+    let (scene, stream, report) = (dir("scene"), dir("s.pwb"), dir("r.json"));
+    let args = [
+        scene.as_str(),
+        "--base",
+        "anchor",
+        "--iters",
+        "10",
+        "--anchor-features",
+        "6",
+        "--anchor-offsets",
+        "3",
+        "--wrapper",
+        "--wd-features",
+        "pixels",
+        "--wd-crop",
+        "64",
+        "--wrapper-crops-per-view",
+        "2",
+        "-o",
+        &stream,
+        "--report",
+        &report,
+    ];
+    let out = pwenc(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("stage 2: 14 steps"), "{stdout}"); // 2 crops x 7 training views
+    let decoded = stream::decode(&std::fs::read(&stream).unwrap()).unwrap();
+    let wrapper = decoded.scene.wrapper.as_ref().expect("the stream carries the wrapper");
+    assert_eq!(wrapper.config.width, 16);
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(report["iterations"].as_u64(), Some(24));
+    assert!(report["stream"]["wrapper"]["parameters"].as_u64().unwrap() > 0);
 }

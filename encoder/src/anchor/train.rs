@@ -13,6 +13,10 @@
 //! cost nothing, so the rate pushes masks shut wherever a Gaussian is not worth its bits
 //! (HAC++), and an anchor with every mask shut leaves the stream.
 //!
+//! With a [`WrapperTraining`], stage 2 (from its start iteration) scores a crop of each step's
+//! view with WD through the perceptual wrapper f, which trains jointly, exactly as on the plain
+//! base ([`crate::train::wrapper_stage`]); the rate term stays on.
+//!
 //! Anchors stay where initialization put them; growing and pruning anchors and the hash-grid
 //! context model come next (issue 15).
 
@@ -29,9 +33,13 @@ use pwgs_decoder::raster::RenderOptions;
 use super::quantize::AnchorSteps;
 use super::rate::factorized_bits;
 use crate::metrics::ssim::{SsimConvention, ssim};
+use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::splat_op::{SplatView, render};
 use crate::train::adam::direction;
 use crate::train::params::tensor_values;
+use crate::train::{WrapperStage, WrapperTraining};
+use pwgs_decoder::wrapper::SceneFrame;
+use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 
 /// The trained tensors, in this order: features [N, F], scaling [N, 6], offsets [N, 3K], then
 /// for each MLP (opacity, color, covariance) W1 [in, hidden], b1 [1, hidden], W2 [hidden, out],
@@ -81,6 +89,10 @@ pub struct AnchorTrainer {
     noise: Option<(AnchorSteps, u32)>,
     /// λ and the iteration from which the rate term and the learned masks are on.
     rate_term: Option<(f32, u32)>,
+    /// Stage 2's settings and what its WD compares, until it starts; then the stage.
+    wrapper_settings: Option<(WrapperTraining, VggWasserstein)>,
+    wrapper: Option<WrapperStage>,
+    frame: SceneFrame,
     pub iteration: u32,
     pub iterations: u32,
 }
@@ -128,6 +140,14 @@ fn mlp_of(t: &[Tensor<2>]) -> Mlp {
         w2: transposed(&tensor_values(t[2].clone()), hidden, outputs),
         b2: tensor_values(t[3].clone()),
     }
+}
+
+/// Scaffold-GS's pixel objective: 0.8 L1 + 0.2 (1 - SSIM).
+fn pixel_loss(image: Tensor<3>, target: Tensor<3>) -> Tensor<1> {
+    let l1 = (image.clone() - target.clone()).abs().mean();
+    let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
+    let structural = ssim(to_nchw(image), to_nchw(target), SsimConvention::ZeroPadded);
+    l1 * 0.8 + (structural.neg() + 1.0) * 0.2
 }
 
 /// relu(x W1 + b1) W2 + b2 for rows x.
@@ -193,6 +213,9 @@ impl AnchorTrainer {
             rng: SplitMix64(seed),
             noise: None,
             rate_term: None,
+            wrapper_settings: None,
+            wrapper: None,
+            frame: data.normalization.frame(),
             iteration: 0,
             iterations,
         })
@@ -209,6 +232,31 @@ impl AnchorTrainer {
     pub fn with_rate(mut self, lambda: f32, from: u32) -> Self {
         self.rate_term = Some((lambda, from));
         self
+    }
+
+    /// Trains the perceptual wrapper from `settings.start` on. Loads what WD compares now, so
+    /// that missing weights are reported before any training.
+    pub fn with_wrapper(mut self, settings: WrapperTraining) -> Result<Self> {
+        let cameras: Vec<Camera> = self.views.iter().map(|(c, _)| *c).collect();
+        let wd = settings.prepare(&cameras, &self.positions.device())?;
+        self.wrapper_settings = Some((settings, wd));
+        Ok(self)
+    }
+
+    /// The synthesis network's current (float) weights, once stage 2 has begun.
+    pub fn synthesis(&self) -> Option<SynthesisWeights> {
+        self.wrapper.as_ref().map(WrapperStage::weights)
+    }
+
+    /// Enters stage 2 at its first iteration.
+    fn start_wrapper_if_due(&mut self) {
+        if self.wrapper_settings.as_ref().is_some_and(|(s, _)| self.iteration >= s.start)
+            && let Some((settings, wd)) = self.wrapper_settings.take()
+        {
+            let cameras: Vec<Camera> = self.views.iter().map(|(c, _)| *c).collect();
+            let device = self.positions.device();
+            self.wrapper = Some(WrapperStage::new(settings, wd, &cameras, self.frame, &mut self.rng, &device));
+        }
     }
 
     /// λ, while the rate term is on.
@@ -255,8 +303,10 @@ impl AnchorTrainer {
 
     /// One step on a random training view.
     pub fn step(&mut self) -> Result<AnchorStep> {
+        self.start_wrapper_if_due();
         let [n, _, k] = self.shape;
-        let (camera, target) = self.views[(self.rng.next_u64() % self.views.len() as u64) as usize].clone();
+        let view_index = (self.rng.next_u64() % self.views.len() as u64) as usize;
+        let (camera, target) = self.views[view_index].clone();
         let device = self.positions.device();
         let tracked: Vec<Tensor<2>> = self.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
         // Features, scaling and offsets as the step sees them: with quantization noise when on.
@@ -304,15 +354,36 @@ impl AnchorTrainer {
         let opacity_logits = (alpha.clone() / (alpha.neg() + 1.0)).log().reshape([m]);
         let sh = ((color - 0.5) / SH_C0).reshape([m, 1, 3]);
         let probe = Tensor::<1>::zeros([m], &device).autodiff();
-        let view = SplatView::full(camera, RenderOptions { background: self.background, ..Default::default() });
+        let step_crop = self.wrapper.as_ref().map(|stage| stage.crop(self.rng.next_u64() as usize));
+        let mut view = SplatView::full(camera, RenderOptions { background: self.background, ..Default::default() });
+        if let Some(c) = step_crop {
+            view.window = c.window;
+        }
         let image = render(means, log_scales.clone(), rotations, opacity_logits, sh, probe, view);
-        let target = target.autodiff();
-        let l1 = (image.clone() - target.clone()).abs().mean();
-        let mse = (image.clone().inner() - target.clone().inner()).powi_scalar(2).mean();
-        let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
-        let structural = ssim(to_nchw(image), to_nchw(target), SsimConvention::ZeroPadded);
-        let volume = log_scales.sum_dim(1).exp().mean();
-        let mut loss = l1 * 0.8 + (structural.neg() + 1.0) * 0.2 + volume * VOLUME_WEIGHT;
+        let volume = log_scales.sum_dim(1).exp().mean() * VOLUME_WEIGHT;
+        let (distortion, shown, wrapper_params) = match (&mut self.wrapper, step_crop) {
+            (Some(stage), Some(step)) => {
+                // WD of the wrapped crop, plus the base's objective on the crop when weighted.
+                let (c, w) = (step.crop, step.window);
+                let crop = |t: Tensor<3>, x0: u32, y0: u32| {
+                    let (x, y) = (x0 as usize, y0 as usize);
+                    t.slice([y..y + c.height as usize, x..x + c.width as usize, 0..3])
+                };
+                let weight = stage.pixel_weight();
+                let pixels = (weight > 0.0).then(|| {
+                    let base = crop(image.clone(), c.x0 - w.x0, c.y0 - w.y0);
+                    pixel_loss(base, crop(target.clone().autodiff(), c.x0, c.y0)) * weight
+                });
+                let (wd, shown, params) = stage.loss(view_index, step, image, &target);
+                (pixels.map_or(wd.clone(), |p| wd + p), shown, Some(params))
+            }
+            _ => (pixel_loss(image.clone(), target.clone().autodiff()), image, None),
+        };
+        let w = view.window;
+        let (x0, y0) = (w.x0 as usize, w.y0 as usize);
+        let seen = target.slice([y0..y0 + w.height as usize, x0..x0 + w.width as usize, 0..3]);
+        let mse = (shown.inner() - seen).powi_scalar(2).mean();
+        let mut loss = distortion + volume;
         let mut bits_per_value = None;
         if let Some(lambda) = lambda {
             let bpp = self.mean_bits(&attributes, &tracked, mask_gate, &masks);
@@ -323,6 +394,12 @@ impl AnchorTrainer {
         let loss_value = tensor_values(loss.inner())[0];
         if !loss_value.is_finite() {
             bail!("anchor training diverged at iteration {}: the loss is {loss_value}", self.iteration);
+        }
+        let wrapper_grad = wrapper_params.map(|p| p.grad(&grads).unwrap_or_else(|| p.inner().zeros_like()));
+        if let (Some(stage), Some(grad)) = (&mut self.wrapper, wrapper_grad)
+            && stage.update(grad).is_none()
+        {
+            bail!("anchor training diverged at iteration {}: the synthesis network became non-finite", self.iteration);
         }
         for (i, t) in tracked.iter().enumerate() {
             let grad = t.grad(&grads).unwrap_or_else(|| self.params[i].zeros_like());

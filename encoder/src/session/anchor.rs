@@ -1,6 +1,6 @@
-//! `pwenc SCENE --base anchor`: trains the anchor base for pixels (with quantization noise),
-//! quantizes it into an anchor stream (SPEC.md section 12), decodes that stream and evaluates
-//! what a decoder shows. The rate term and the wrapper on anchors come next (issue 15).
+//! `pwenc SCENE --base anchor`: trains the anchor base (quantization noise, the rate term and,
+//! with `--wrapper`, stage 2 with the perceptual wrapper), quantizes it into an anchor stream
+//! (SPEC.md section 12), decodes that stream and evaluates what a decoder shows.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -11,11 +11,16 @@ use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::{self, Decoded};
 use serde::Serialize;
 
-use super::{check_outputs, section_sizes, write_report};
+use super::{WrapperSummary, check_outputs, print_wrapper, quantize_wrapper, section_sizes, write_report};
 use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::quantize::{AnchorSteps, quantize};
 use crate::anchor::train::AnchorTrainer;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use crate::train::WrapperTraining;
+use pwgs_decoder::camera::Camera;
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::stream::anchor::QuantizedAnchors;
+use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 
 /// An anchor training run.
 #[derive(Debug, Clone)]
@@ -35,6 +40,9 @@ pub struct AnchorJob {
     /// λ of the rate term (from 30% of the iterations on, with learned masks); `None`: no rate
     /// term, every mask open.
     pub lambda: Option<f32>,
+    /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
+    /// `crops_per_view` steps per training view.
+    pub wrapper: Option<WrapperTraining>,
     /// Write the stream here.
     pub output: Option<PathBuf>,
     pub eval: Option<EvalOptions>,
@@ -53,6 +61,7 @@ pub struct AnchorStreamSummary {
     pub bias_step_log2: i8,
     pub sections: Vec<(String, usize)>,
     pub attribute_sha256: String,
+    pub wrapper: Option<WrapperSummary>,
 }
 
 #[derive(Serialize)]
@@ -96,7 +105,16 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         job.offsets_per_anchor,
         job.feature_dim
     );
-    let mut trainer = AnchorTrainer::new(&initial, &data, job.iterations, job.background, job.seed)?;
+    let stage_two = job.wrapper.as_ref().map_or(0, |w| w.crops_per_view.saturating_mul(data.train.len() as u32));
+    let total = job.iterations.saturating_add(stage_two);
+    let mut trainer = AnchorTrainer::new(&initial, &data, total, job.background, job.seed)?;
+    if let Some(w) = &job.wrapper {
+        trainer = trainer.with_wrapper(w.clone())?;
+        println!(
+            "stage 1: {} iterations; stage 2: {stage_two} steps ({} crops per training view)",
+            job.iterations, w.crops_per_view
+        );
+    }
     if job.quantization_noise {
         trainer = trainer.with_quantization_noise(job.steps, job.iterations / 10);
     }
@@ -130,9 +148,19 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         scale: data.normalization.scale,
         background: job.background,
     };
-    let bytes = stream::encode(&header, &content, None)?;
-    // What every decoder reconstructs: the evaluation renders exactly this.
-    let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
+    let wrapper = match trainer.synthesis() {
+        Some(weights) => {
+            // f's steps are chosen on renders of the anchors as the stream holds them.
+            let decoded = decode_own(&header, &content, None)?;
+            let options = RenderOptions { background: job.background, ..Default::default() };
+            let base_render = |camera: &Camera| render(&decoded.scene.gaussians_for(camera), camera, &options).data;
+            let w = quantize_wrapper(&weights, &base_render, &data, data.normalization.frame());
+            print_wrapper(&w);
+            Some(w)
+        }
+        None => None,
+    };
+    let (bytes, Decoded { scene, .. }) = encode_and_decode(&header, &content, wrapper.as_ref())?;
     if let Some(path) = &job.output {
         pwgs_decoder::atomic_file::write_atomically(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
@@ -148,6 +176,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         bias_step_log2: job.steps.bias_exponent,
         sections: section_sizes(&bytes),
         attribute_sha256: scene.attribute_hash(),
+        wrapper: wrapper.as_ref().map(WrapperSummary::of),
     };
     let (views, mean) = match &evaluation {
         Some(e) => e.run(&scene, &data).map(|(views, mean)| (views, Some(mean)))?,
@@ -178,4 +207,19 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         write_report(path, &report)?;
     }
     Ok(report)
+}
+
+/// The stream of `content` (and `wrapper`) and what every decoder reconstructs from it.
+fn encode_and_decode(
+    header: &Header,
+    content: &QuantizedAnchors,
+    wrapper: Option<&QuantizedSynthesis>,
+) -> Result<(Vec<u8>, Decoded)> {
+    let bytes = stream::encode(header, content, wrapper)?;
+    let decoded = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
+    Ok((bytes, decoded))
+}
+
+fn decode_own(header: &Header, content: &QuantizedAnchors, wrapper: Option<&QuantizedSynthesis>) -> Result<Decoded> {
+    encode_and_decode(header, content, wrapper).map(|(_, decoded)| decoded)
 }

@@ -17,6 +17,11 @@ use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
 use crate::compress::{Compressed, QuantizerSettings, StreamContext, compress_to_size};
+use crate::synthesis::{QuantizationSample, choose_quantization};
+use pwgs_dataset::Dataset;
+use pwgs_decoder::camera::Camera;
+use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
+use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 
 pub use anchor::{AnchorJob, AnchorReport, train_anchor_scene};
 pub use import::{ImportJob, ImportReport, Orbit, import_ply};
@@ -133,6 +138,39 @@ fn section_sizes(stream: &[u8]) -> Vec<(String, usize)> {
         .iter()
         .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + SECTION_OVERHEAD))
         .collect()
+}
+
+/// Quantizes f with steps chosen on renders of the first training views (`base_render` gives
+/// a view's base render, [H, W, 3]): the coarsest whose residual stays within a quarter of a
+/// gray level of the float network's.
+fn quantize_wrapper(
+    weights: &SynthesisWeights,
+    base_render: &dyn Fn(&Camera) -> Vec<f32>,
+    data: &Dataset,
+    frame: SceneFrame,
+) -> QuantizedSynthesis {
+    let samples: Vec<QuantizationSample> = data
+        .train
+        .iter()
+        .take(2)
+        .map(|view| QuantizationSample {
+            base: base_render(&view.camera),
+            conditioning: conditioning(&weights.config, &view.camera, frame),
+            width: view.camera.width as usize,
+            height: view.camera.height as usize,
+        })
+        .collect();
+    choose_quantization(weights, &samples, 0.25 / 255.0)
+}
+
+/// Prints f's quantization.
+fn print_wrapper(w: &QuantizedSynthesis) {
+    println!(
+        "wrapper: {} parameters, steps 2^{} (weights) and 2^{} (biases)",
+        w.values.len(),
+        w.weight_exponent,
+        w.bias_exponent
+    );
 }
 
 fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {

@@ -7,20 +7,19 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
-use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_decoder::camera::Camera;
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
-use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
-use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 use serde::Serialize;
 
-use super::{StreamOptions, StreamSummary, check_outputs, read_ply, write_report, write_stream};
+use super::{
+    StreamOptions, StreamSummary, check_outputs, print_wrapper, quantize_wrapper, read_ply, write_report, write_stream,
+};
 use crate::compress::StreamContext;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::init::initial_gaussians;
-use crate::synthesis::{QuantizationSample, choose_quantization};
 use crate::train::{TrainConfig, TrainSummary, Trainer, train};
 
 /// Everything a training run does. `config.background` is also the scene's background.
@@ -116,14 +115,10 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let n = data.normalization;
     let frame = n.frame();
     let options = RenderOptions { background, ..Default::default() };
-    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &gaussians, &data, frame, &options));
+    let base_render = |camera: &Camera| render(&gaussians, camera, &options).data;
+    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &base_render, &data, frame));
     if let Some(w) = &wrapper {
-        println!(
-            "wrapper: {} parameters, steps 2^{} (weights) and 2^{} (biases)",
-            w.values.len(),
-            w.weight_exponent,
-            w.bias_exponent
-        );
+        print_wrapper(w);
     }
     let stream = match &job.stream {
         Some(stream) => {
@@ -192,27 +187,4 @@ fn train_with_progress(trainer: &mut Trainer, iterations: u32) -> Result<TrainSu
     });
     bar.finish();
     result
-}
-
-/// Quantizes f with steps chosen on renders of the first training views: the coarsest whose
-/// residual stays within a quarter of a gray level of the float network's.
-fn quantize_wrapper(
-    weights: &SynthesisWeights,
-    g: &Gaussians,
-    data: &Dataset,
-    frame: SceneFrame,
-    options: &RenderOptions,
-) -> QuantizedSynthesis {
-    let samples: Vec<QuantizationSample> = data
-        .train
-        .iter()
-        .take(2)
-        .map(|view| QuantizationSample {
-            base: render(g, &view.camera, options).data,
-            conditioning: conditioning(&weights.config, &view.camera, frame),
-            width: view.camera.width as usize,
-            height: view.camera.height as usize,
-        })
-        .collect();
-    choose_quantization(weights, &samples, 0.25 / 255.0)
 }

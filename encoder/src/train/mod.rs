@@ -32,7 +32,7 @@ use densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset
 use params::{PARAM_NAMES, SplatParams, tensor_values};
 use pwgs_decoder::wrapper::SceneFrame;
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
-use wrapper_stage::WrapperStage;
+pub(crate) use wrapper_stage::WrapperStage;
 pub use wrapper_stage::{WdFeatures, WrapperTraining};
 
 /// Training settings. [`TrainConfig::for_iterations`] gives the 3DGS defaults with the

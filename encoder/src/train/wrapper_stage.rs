@@ -64,7 +64,7 @@ pub struct WrapperTraining {
 }
 
 /// The wrapper's training state.
-pub(super) struct WrapperStage {
+pub(crate) struct WrapperStage {
     settings: WrapperTraining,
     wd: VggWasserstein,
     /// f's parameters, flat in stream order, and their Adam moments.
