@@ -54,8 +54,9 @@ const RATE_MODEL: usize = 16;
 /// A mask is open while sigmoid(logit) > 0.01, i.e. logit > ln(0.01 / 0.99).
 const MASK_THRESHOLD_LOGIT: f32 = -4.595_12;
 
-/// Initial mask logit (sigmoid 0.73, HAC's initialization).
-const INITIAL_MASK_LOGIT: f32 = 1.0;
+/// Initial mask logit (sigmoid 0.12): near enough to the threshold that a short run can shut
+/// the masks the rate does not pay for (HAC starts at 0.73 with 30,000 iterations to go).
+const INITIAL_MASK_LOGIT: f32 = -2.0;
 
 /// Learning rates at the start and the end of training (log-linear decay), per parameter
 /// group, from Scaffold-GS; the offsets' rates are also scaled by the scene extent.
@@ -66,7 +67,7 @@ const RATES: [[f32; 2]; 8] = [
     [0.002, 2e-5],    // opacity MLP
     [0.008, 5e-5],    // color MLP
     [0.004, 0.004],   // covariance MLP
-    [0.01, 1e-4],     // mask logits (HAC)
+    [0.01, 0.01],     // mask logits
     [0.005, 0.005],   // rate model
 ];
 
