@@ -388,11 +388,8 @@ impl EncodeArgs {
 
     /// `--base anchor`: the anchor training job, refusing what the anchor base cannot do yet.
     fn anchor_job(&self, scene: &Path) -> Result<AnchorJob> {
-        let unsupported = [(self.init_ply.is_some(), "--init-ply"), (self.export_ply.is_some(), "--export-ply")];
-        if let Some((_, what)) = unsupported.iter().find(|(set, _)| *set) {
-            bail!(
-                "--base anchor does not support {what} yet (issue 15); it trains, writes the stream (-o) and evaluates (--eval, --report)"
-            );
+        if self.init_ply.is_some() {
+            bail!("--base anchor does not start from a PLY (--init-ply): it places anchors on the scene's SfM points");
         }
         Ok(AnchorJob {
             scene: scene.to_path_buf(),
@@ -407,6 +404,7 @@ impl EncodeArgs {
             quantization_noise: !self.no_quantization_noise,
             lambda: (self.lambda > 0.0).then_some(self.lambda),
             wrapper: self.wrapper.training(self.iters, self.seed, self.weight_dirs())?,
+            export_ply: self.export_ply.clone(),
             output: self.output.clone(),
             eval: self.eval_options(),
             report: self.report.clone(),

@@ -90,13 +90,20 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     assert_eq!(report["stream"]["attribute_sha256"].as_str(), Some(decoded.scene.attribute_hash().as_str()));
     assert_eq!(decoded.header.base, stream::header::BaseKind::Anchors);
 
-    // What the anchor base cannot do yet is refused before any training.
+    // --export-ply writes standard Gaussians of SH degree 3; --init-ply is refused before any
+    // training, and nothing is written.
+    let ply = dir("x.ply");
+    let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
+    args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "--export-ply", &ply]);
+    let out = pwenc(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(pwgs_decoder::ply::read_gaussians(std::path::Path::new(&ply)).unwrap().gaussians.sh_degree, 3);
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let stream = dir("w.pwb");
-    args.extend(["-o", &stream, "--export-ply", "x.ply"]);
+    args.extend(["-o", &stream, "--init-ply", &ply]);
     let out = pwenc(&args);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--export-ply"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--init-ply"));
     assert!(!std::path::Path::new(&stream).exists());
 }
 

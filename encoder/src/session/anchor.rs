@@ -17,8 +17,10 @@ use crate::anchor::quantize::{AnchorSteps, quantize};
 use crate::anchor::train::AnchorTrainer;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
+use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::scene::Base;
 use pwgs_decoder::stream::anchor::QuantizedAnchors;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 
@@ -45,6 +47,9 @@ pub struct AnchorJob {
     pub wrapper: Option<WrapperTraining>,
     /// Write the stream here.
     pub output: Option<PathBuf>,
+    /// Write the decoded anchors as standard Gaussians (SH degree 3 fitted over the training
+    /// cameras) to this PLY.
+    pub export_ply: Option<PathBuf>,
     pub eval: Option<EvalOptions>,
     pub report: Option<PathBuf>,
 }
@@ -90,7 +95,7 @@ pub struct AnchorReport {
 }
 
 pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
-    check_outputs(job.output.iter().chain(&job.report), job.eval.iter().map(|e| &e.dir))?;
+    check_outputs(job.output.iter().chain(&job.report).chain(&job.export_ply), job.eval.iter().map(|e| &e.dir))?;
     let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let data =
         load_scene(&job.scene, &job.load).with_context(|| format!("cannot load the scene {}", job.scene.display()))?;
@@ -165,6 +170,19 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         pwgs_decoder::atomic_file::write_atomically(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
+    }
+    if let (Some(path), Base::Anchors(model)) = (&job.export_ply, &scene.base) {
+        let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
+        let export = export_gaussians(model, &cameras);
+        let checked = &cameras[..cameras.len().min(8)];
+        let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
+        pwgs_decoder::ply::write_gaussians(path, &export)?;
+        println!(
+            "wrote {} Gaussians (SH degree 3) to {}: PSNR {psnr:.2} dB against the anchor renders of {} training views",
+            export.len(),
+            path.display(),
+            checked.len()
+        );
     }
     let stream_summary = AnchorStreamSummary {
         path: job.output.as_ref().map(|p| p.display().to_string()),
