@@ -23,7 +23,7 @@ def row(label, path):
         f"{training['iterations']:,}",
         f"{training['seconds']:.0f}",
     ]
-    for key, fmt in [("dists", "{:.4f}"), ("lpips", "{:.4f}"), ("wd", "{:.3f}"), ("psnr", "{:.2f}")]:
+    for key, fmt in [("dists", "{:.4f}"), ("lpips", "{:.4f}"), ("wd", "{:.3f}"), ("psnr", "{:.2f}"), ("ssim", "{:.4f}")]:
         cells.append(fmt.format(mean[key]) if key in mean else "-")
     return "| " + " | ".join(cells) + " |"
 
@@ -32,8 +32,8 @@ def main(args):
     if not args or args[0] in ("-h", "--help"):
         print(__doc__.strip())
         return 0 if args else 2
-    print("| run | bytes | iterations | training s | DISTS | LPIPS | WD | PSNR |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| run | bytes | iterations | training s | DISTS | LPIPS | WD | PSNR | SSIM |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for arg in args:
         label, _, path = arg.partition("=") if "=" in arg else (Path(arg).stem, "", arg)
         print(row(label, path))
