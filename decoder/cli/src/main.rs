@@ -248,29 +248,42 @@ fn export_anchors(
     downscale: u32,
     scene: &Scene,
 ) -> Result<Gaussians> {
-    let cameras: Vec<Camera> = match fit_views {
+    // Fitted over the training cameras, checked on the test cameras when there are any.
+    let (cameras, checked): (Vec<Camera>, Vec<Camera>) = match fit_views {
         Some(folder) => {
             let options = LoadOptions { downscale, ..Default::default() };
             let data = load_cameras(folder, &options)
                 .with_context(|| format!("cannot load the scene {}", folder.display()))?;
-            data.train.iter().map(|v| v.camera).collect()
+            let train: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
+            let test: Vec<Camera> = data.test.iter().map(|v| v.camera).collect();
+            let checked = if test.is_empty() { train.iter().take(8).copied().collect() } else { test };
+            (train, checked)
         }
-        None => sphere_cameras(header.center, header.scale, 64, 256),
+        None => {
+            let sphere = sphere_cameras(header.center, header.scale, 64, 256);
+            let checked = sphere_cameras(header.center, header.scale * 1.1, 8, 256);
+            (sphere, checked)
+        }
     };
     if cameras.is_empty() {
         bail!("--export-ply: no cameras to fit the anchor base's colors over");
     }
     let export = export_gaussians(model, &cameras);
-    let checked = &cameras[..cameras.len().min(8)];
-    let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
+    let psnr = agreement_psnr(model, &export, &checked, &scene.render_options());
     eprintln!(
         "exported {} Gaussians (SH degree 3) from {} anchors, fitted over {} views; PSNR {psnr:.2} dB against the \
-         anchor renders of {} of them",
+         anchor renders of {} other views",
         export.len(),
         model.len(),
         cameras.len(),
         checked.len()
     );
+    if fit_views.is_none() {
+        eprintln!(
+            "(those views are on a sphere around the scene's center and may see little of a forward-facing capture: \
+             --fit-views SCENE_DIR fits and checks over the capture's own cameras)"
+        );
+    }
     Ok(export)
 }
 

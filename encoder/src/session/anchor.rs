@@ -174,11 +174,13 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if let (Some(path), Base::Anchors(model)) = (&job.export_ply, &scene.base) {
         let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
         let export = export_gaussians(model, &cameras);
-        let checked = &cameras[..cameras.len().min(8)];
+        // Checked on the test views (the fit saw only the training views).
+        let test: Vec<Camera> = data.test.iter().map(|v| v.camera).collect();
+        let checked = if test.is_empty() { &cameras[..cameras.len().min(8)] } else { &test[..] };
         let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
         pwgs_decoder::ply::write_gaussians(path, &export)?;
         println!(
-            "wrote {} Gaussians (SH degree 3) to {}: PSNR {psnr:.2} dB against the anchor renders of {} training views",
+            "wrote {} Gaussians (SH degree 3) to {}: PSNR {psnr:.2} dB against the anchor renders of {} views",
             export.len(),
             path.display(),
             checked.len()
