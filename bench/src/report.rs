@@ -1,0 +1,101 @@
+//! The report: `report.md` with the runs, the Bjøntegaard deltas of every curve against the
+//! reference curve, and one RD chart per metric beside it.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+
+use crate::bjontegaard::{RdPoint, bd_quality, bd_rate};
+use crate::plot::rd_chart;
+use crate::runs::{Curve, Metric};
+
+fn rd_points(curve: &Curve, metric: Metric) -> Vec<RdPoint> {
+    curve.points(metric).into_iter().map(|(bytes, quality)| RdPoint { bytes, quality }).collect()
+}
+
+fn cell(value: Option<f64>, digits: usize) -> String {
+    value.map_or_else(|| "-".into(), |v| format!("{v:.digits$}"))
+}
+
+/// Digits a metric is printed with.
+fn digits(metric: Metric) -> usize {
+    match metric {
+        Metric::Psnr => 2,
+        Metric::Wd => 3,
+        _ => 4,
+    }
+}
+
+/// The runs of every curve, one table.
+fn runs_table(curves: &[Curve]) -> String {
+    let mut s = String::from("| curve | bytes | PSNR | SSIM | LPIPS | DISTS | WD | training s | report |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    for c in curves {
+        for r in &c.runs {
+            let scores: Vec<String> = Metric::ALL.iter().map(|&m| cell(r.score(m), digits(m))).collect();
+            let _ = writeln!(
+                s,
+                "| {} | {:.0} | {} | {} | `{}` |",
+                c.name,
+                r.bytes,
+                scores.join(" | "),
+                cell(r.training_seconds, 0),
+                r.file
+            );
+        }
+    }
+    s
+}
+
+/// BD-rate on every metric and BD-PSNR of each curve against `reference`.
+fn deltas_table(curves: &[Curve], reference: &Curve) -> String {
+    let mut s = String::from("| curve | ");
+    for m in Metric::ALL {
+        let _ = write!(s, "BD-rate on {} | ", m.label());
+    }
+    s.push_str("BD-PSNR |\n|---|");
+    s.push_str(&"---|".repeat(Metric::ALL.len() + 1));
+    s.push('\n');
+    for c in curves.iter().filter(|c| c.name != reference.name) {
+        let _ = write!(s, "| {} | ", c.name);
+        for m in Metric::ALL {
+            let text = match bd_rate(&rd_points(reference, m), &rd_points(c, m)) {
+                Some(d) => format!("{:+.1}% (over {:.d$} to {:.d$})", d.value, d.over.0, d.over.1, d = digits(m)),
+                None => "no overlap".into(),
+            };
+            let _ = write!(s, "{text} | ");
+        }
+        let psnr = bd_quality(&rd_points(reference, Metric::Psnr), &rd_points(c, Metric::Psnr));
+        let text = psnr.map_or_else(
+            || "no overlap".into(),
+            |d| format!("{:+.2} dB (over {:.0} to {:.0} bytes)", d.value, 10f64.powf(d.over.0), 10f64.powf(d.over.1)),
+        );
+        let _ = writeln!(s, "{text} |");
+    }
+    s
+}
+
+/// Writes the charts and `report.md` into `dir` (created if needed); returns the report's path.
+pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut md = format!("# {title}\n\n## Runs\n\n{}\n", runs_table(curves));
+    let _ = writeln!(
+        md,
+        "## Bjøntegaard deltas against `{}`\n\nBD-rate: how many percent more (+) or fewer (-) bytes a curve needs for \
+         the same score, averaged over the scores both curves reach (piecewise cubic interpolation of log rate); \
+         BD-PSNR: its PSNR difference at equal size. A curve needs 2 runs or more.\n\n{}",
+        reference.name,
+        deltas_table(curves, reference)
+    );
+    md.push_str("## Charts\n\n");
+    for m in Metric::ALL {
+        let file = format!("rd_{}.svg", m.key());
+        if rd_chart(curves, m, &format!("{title}: {}", m.label()), &dir.join(&file))? {
+            let _ = writeln!(md, "![{}]({file})\n", m.label());
+        }
+    }
+    let path = dir.join("report.md");
+    std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(path)
+}

@@ -1,0 +1,104 @@
+//! Runs as `pwenc --report` writes them, grouped into curves.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use serde_json::Value;
+
+/// The metrics a report may hold, in the order tables list them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Metric {
+    Psnr,
+    Ssim,
+    Lpips,
+    Dists,
+    Wd,
+}
+
+impl Metric {
+    pub const ALL: [Metric; 5] = [Metric::Psnr, Metric::Ssim, Metric::Lpips, Metric::Dists, Metric::Wd];
+
+    /// The key in a report's `mean`.
+    pub fn key(self) -> &'static str {
+        match self {
+            Metric::Psnr => "psnr",
+            Metric::Ssim => "ssim",
+            Metric::Lpips => "lpips",
+            Metric::Dists => "dists",
+            Metric::Wd => "wd",
+        }
+    }
+
+    pub fn label(self) -> &'static str {
+        match self {
+            Metric::Psnr => "PSNR (dB)",
+            Metric::Ssim => "SSIM",
+            Metric::Lpips => "LPIPS",
+            Metric::Dists => "DISTS",
+            Metric::Wd => "WD",
+        }
+    }
+
+    pub fn higher_is_better(self) -> bool {
+        matches!(self, Metric::Psnr | Metric::Ssim)
+    }
+}
+
+/// One encoded stream and the mean scores of its decoded test views.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Run {
+    pub file: String,
+    pub bytes: f64,
+    pub training_seconds: Option<f64>,
+    /// Per [`Metric::ALL`], when the report has it.
+    pub scores: [Option<f64>; 5],
+}
+
+impl Run {
+    pub fn score(&self, metric: Metric) -> Option<f64> {
+        self.scores[Metric::ALL.iter().position(|&m| m == metric).expect("every metric is listed")]
+    }
+
+    /// Reads a report of `pwenc --report` (plain or anchor base) that has a stream.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let r: Value = serde_json::from_str(&text).with_context(|| format!("{} is not JSON", path.display()))?;
+        let Some(bytes) = r["stream"]["bytes"].as_f64() else {
+            bail!("{} has no stream size (was it written with -o?)", path.display());
+        };
+        // A plain-base report nests its training time; an anchor-base report has it on top.
+        let training_seconds = r["training"]["seconds"].as_f64().or_else(|| r["training_seconds"].as_f64());
+        let scores = Metric::ALL.map(|m| r["mean"][m.key()].as_f64());
+        if scores.iter().all(Option::is_none) {
+            bail!("{} has no mean scores (was it written with --eval?)", path.display());
+        }
+        Ok(Self { file: path.display().to_string(), bytes, training_seconds, scores })
+    }
+}
+
+/// A named set of runs of one method at several rates, sorted by size.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Curve {
+    pub name: String,
+    pub runs: Vec<Run>,
+}
+
+impl Curve {
+    /// Parses `NAME=a.json,b.json,...` and reads the reports.
+    pub fn parse(arg: &str) -> Result<Self> {
+        let Some((name, files)) = arg.split_once('=') else {
+            bail!("`{arg}`: expected NAME=report.json[,report.json...]");
+        };
+        if name.is_empty() {
+            bail!("`{arg}`: the curve needs a name");
+        }
+        let mut runs = files.split(',').map(|f| Run::read(Path::new(f))).collect::<Result<Vec<_>>>()?;
+        runs.sort_by(|a, b| a.bytes.total_cmp(&b.bytes));
+        Ok(Self { name: name.to_string(), runs })
+    }
+
+    /// (bytes, score) of every run that has `metric`.
+    pub fn points(&self, metric: Metric) -> Vec<(f64, f64)> {
+        self.runs.iter().filter_map(|r| r.score(metric).map(|s| (r.bytes, s))).collect()
+    }
+}

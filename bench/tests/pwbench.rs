@@ -1,0 +1,72 @@
+//! `pwbench` end to end on made-up reports: the report states the Bjøntegaard deltas the
+//! curves were built to have, and draws a chart per metric they carry.
+
+use std::path::Path;
+use std::process::Command;
+
+/// A report as `pwenc --report` writes it (only the fields pwbench reads).
+fn report(dir: &Path, name: &str, bytes: f64, psnr: f64, dists: f64, plain_base: bool) -> String {
+    let path = dir.join(format!("{name}.json"));
+    let training = if plain_base {
+        serde_json::json!({ "training": { "iterations": 2000, "seconds": 100.0 } })
+    } else {
+        serde_json::json!({ "iterations": 2000, "training_seconds": 120.0 })
+    };
+    let mut value = serde_json::json!({
+        "stream": { "bytes": bytes },
+        "mean": { "psnr": psnr, "ssim": 0.8, "dists": dists },
+    });
+    value.as_object_mut().unwrap().extend(training.as_object().unwrap().clone());
+    std::fs::write(&path, value.to_string()).unwrap();
+    path.display().to_string()
+}
+
+#[test]
+fn the_report_states_the_deltas_the_curves_were_made_with() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    // "half" needs half the bytes of "base" for every PSNR and DISTS.
+    let points = [(100_000.0, 25.0, 0.14), (200_000.0, 26.5, 0.12), (400_000.0, 27.5, 0.10)];
+    let base: Vec<String> =
+        points.iter().enumerate().map(|(i, &(b, p, s))| report(d, &format!("b{i}"), b, p, s, true)).collect();
+    let half: Vec<String> =
+        points.iter().enumerate().map(|(i, &(b, p, s))| report(d, &format!("h{i}"), b / 2.0, p, s, false)).collect();
+    let out = d.join("out");
+    let status = Command::new(env!("CARGO_BIN_EXE_pwbench"))
+        .args([format!("base={}", base.join(",")), format!("half={}", half.join(","))])
+        .args(["-o", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(status.status.success(), "{}", String::from_utf8_lossy(&status.stderr));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let deltas = md.split("## Bjøntegaard").nth(1).unwrap_or_else(|| panic!("{md}"));
+    let row = deltas.lines().find(|l| l.starts_with("| half |")).unwrap_or_else(|| panic!("{md}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    // Columns: name, BD-rate on PSNR, SSIM, LPIPS, DISTS, WD, then BD-PSNR.
+    assert!(cells[2].starts_with("-50.0% (over 25.00 to 27.50)"), "{row}");
+    assert_eq!(cells[3], "no overlap", "SSIM is the same at every rate: {row}");
+    assert_eq!(cells[4], "no overlap", "no run has LPIPS: {row}");
+    assert!(cells[5].starts_with("-50.0% (over 0.1000 to 0.1400)"), "{row}");
+    let bd_psnr: f64 = cells[7].split(' ').next().unwrap().parse().unwrap();
+    assert!(bd_psnr > 1.0 && bd_psnr < 2.5, "{row}");
+    for metric in ["psnr", "ssim", "dists"] {
+        let svg = std::fs::read_to_string(out.join(format!("rd_{metric}.svg"))).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("half"), "rd_{metric}.svg");
+    }
+    assert!(!out.join("rd_wd.svg").exists(), "no run has WD");
+}
+
+#[test]
+fn bad_arguments_are_clear_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| Command::new(env!("CARGO_BIN_EXE_pwbench")).args(args).output().unwrap();
+    let out = run(&["nonsense", "-o", tmp.path().to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("NAME=report.json"));
+    let missing = tmp.path().join("missing.json");
+    let out = run(&[&format!("a={}", missing.display()), "-o", tmp.path().to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("cannot read"));
+    let no_stream = tmp.path().join("r.json");
+    std::fs::write(&no_stream, r#"{"mean": {"psnr": 20}}"#).unwrap();
+    let out = run(&[&format!("a={}", no_stream.display()), "-o", tmp.path().to_str().unwrap()]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("no stream size"));
+}
