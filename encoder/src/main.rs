@@ -135,7 +135,7 @@ struct EncodeArgs {
     #[arg(long, default_value_t = 0.005, value_parser = parse_positive)]
     voxel: f32,
     /// With --base anchor: multiplies the quantization steps of the anchors' features, scales
-    /// and offsets (1: features and offsets 1/32, log scales 1/64).
+    /// and offsets (1: features and offsets 1/8, log scales 1/16); larger is smaller.
     #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
     anchor_step_scale: f32,
     /// With --base anchor: train without the quantization noise (the stream is rounded all

@@ -23,11 +23,12 @@ pub struct AnchorSteps {
 }
 
 impl Default for AnchorSteps {
-    /// Steps whose rounding costs little against training noise (measured in the closing
-    /// note of issue 15): features and offsets at 1/32 (features and offsets are O(1)), log
-    /// scales at 1/64, weights at 2^-11, biases at 2^-12.
+    /// Features and offsets at 1/8 (both are O(1)), log scales at 1/16, weights at 2^-11,
+    /// biases at 2^-12. On fern at 2,000 iterations these steps (λ = 0.002) gave 270 KB at
+    /// 27.02 dB, twice them 224 KB at 26.46 dB, both ahead of the plain base at its sizes
+    /// (303 KB: 26.18 dB; 229 KB: 25.99 dB).
     fn default() -> Self {
-        Self { feature: 1.0 / 32.0, scaling: 1.0 / 64.0, offset: 1.0 / 32.0, weight_exponent: -11, bias_exponent: -12 }
+        Self { feature: 1.0 / 8.0, scaling: 1.0 / 16.0, offset: 1.0 / 8.0, weight_exponent: -11, bias_exponent: -12 }
     }
 }
 
