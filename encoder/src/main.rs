@@ -23,7 +23,7 @@ use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 use pwgs_encoder::session::{
     AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions, encode_scene, import_ply, train_anchor_scene,
 };
-use pwgs_encoder::train::wrapper_stage::DEFAULT_CROPS_PER_VIEW;
+use pwgs_encoder::train::wrapper_stage::{DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS};
 use pwgs_encoder::train::{TrainConfig, WdFeatures, WrapperTraining};
 
 #[derive(Parser)]
@@ -208,6 +208,9 @@ struct WrapperArgs {
     #[arg(long, default_value_t = DEFAULT_CROPS_PER_VIEW, requires = "wrapper",
           value_parser = clap::value_parser!(u32).range(1..=10_000))]
     wrapper_crops_per_view: u32,
+    /// Stage 2's least length in steps, for scenes with few views (0: none).
+    #[arg(long, default_value_t = DEFAULT_MIN_STEPS, requires = "wrapper")]
+    wrapper_min_steps: u32,
     /// Memory for cached ground-truth WD features, in MiB (a 128-pixel crop takes about 11 MB;
     /// beyond this budget they are recomputed at each use).
     #[arg(long, default_value_t = 2048, requires = "wrapper")]
@@ -308,6 +311,7 @@ impl WrapperArgs {
             },
             start: iterations,
             crops_per_view: self.wrapper_crops_per_view,
+            min_steps: self.wrapper_min_steps,
             cache_bytes: self.wd_cache_mib.saturating_mul(1 << 20),
             log2_sigma,
             crop: self.wd_crop,

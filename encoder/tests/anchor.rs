@@ -134,6 +134,8 @@ fn pwenc_trains_the_wrapper_on_anchors() {
         "64",
         "--wrapper-crops-per-view",
         "2",
+        "--wrapper-min-steps",
+        "0",
         "-o",
         &stream,
         "--report",

@@ -117,6 +117,7 @@ fn the_stage_two_pixel_term_adds_the_base_objective() {
             features: WdFeatures::Pixels,
             pixel_weight,
             crops_per_view: 1,
+            min_steps: 0,
             cache_bytes: usize::MAX,
         });
         let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();

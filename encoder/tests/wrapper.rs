@@ -43,6 +43,8 @@ fn decoder_shows_what_the_encoder_evaluated() {
         "--wrapper",
         "--wrapper-crops-per-view",
         "3",
+        "--wrapper-min-steps",
+        "0",
         "--wd-features",
         "pixels",
         "--wd-crop",
@@ -89,8 +91,16 @@ fn ablations_and_bad_wrapper_options() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
     success(pwenc(&["generate-scene", &dir("scene"), "--width", "64", "--height", "64", "--views", "5"]));
-    let common =
-        [dir("scene"), "--iters".into(), "4".into(), "--wrapper".into(), "--wrapper-crops-per-view".into(), "1".into()];
+    let common = [
+        dir("scene"),
+        "--iters".into(),
+        "4".into(),
+        "--wrapper".into(),
+        "--wrapper-crops-per-view".into(),
+        "1".into(),
+        "--wrapper-min-steps".into(),
+        "0".into(),
+    ];
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let out = dir("a.pwb");
     args.extend(["--wd-features", "pixels", "--no-noise", "--wrapper-width", "5", "--wd-crop", "64", "-o", &out]);

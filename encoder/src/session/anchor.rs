@@ -110,14 +110,14 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         job.offsets_per_anchor,
         job.feature_dim
     );
-    let stage_two = job.wrapper.as_ref().map_or(0, |w| w.crops_per_view.saturating_mul(data.train.len() as u32));
+    let stage_two = job.wrapper.as_ref().map_or(0, |w| w.stage_two_steps(data.train.len()));
     let total = job.iterations.saturating_add(stage_two);
     let mut trainer = AnchorTrainer::new(&initial, &data, total, job.background, job.seed)?;
     if let Some(w) = &job.wrapper {
         trainer = trainer.with_wrapper(w.clone())?;
         println!(
-            "stage 1: {} iterations; stage 2: {stage_two} steps ({} crops per training view)",
-            job.iterations, w.crops_per_view
+            "stage 1: {} iterations; stage 2: {stage_two} steps ({} crops per training view, at least {})",
+            job.iterations, w.crops_per_view, w.min_steps
         );
     }
     if job.quantization_noise {

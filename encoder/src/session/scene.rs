@@ -91,10 +91,11 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     config.schedule_stage_two(data.train.len());
     if let Some(w) = &config.wrapper {
         println!(
-            "stage 1: {} iterations; stage 2: {} steps ({} crops per training view)",
+            "stage 1: {} iterations; stage 2: {} steps ({} crops per training view, at least {})",
             w.start,
             config.iterations - w.start,
-            w.crops_per_view
+            w.crops_per_view,
+            w.min_steps
         );
     }
     let background = config.background;

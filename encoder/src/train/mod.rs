@@ -109,13 +109,12 @@ impl TrainConfig {
     }
 
     /// Places stage 2 after the `iterations` of stage 1 and extends the run by its
-    /// `crops_per_view` steps per training view, so that each view is scored about as often
-    /// whatever the scene's size. Without a wrapper nothing changes.
+    /// `crops_per_view` steps per training view (at least `min_steps`), so that each view is
+    /// scored about as often whatever the scene's size. Without a wrapper nothing changes.
     pub fn schedule_stage_two(&mut self, train_views: usize) {
         if let Some(w) = &mut self.wrapper {
             w.start = self.iterations;
-            let steps = u64::from(w.crops_per_view) * train_views as u64;
-            self.iterations = u32::try_from(u64::from(self.iterations) + steps).unwrap_or(u32::MAX);
+            self.iterations = self.iterations.saturating_add(w.stage_two_steps(train_views));
         }
     }
 

@@ -28,9 +28,15 @@ use crate::metrics::vgg_wasserstein::{MIN_SIDE, VggWasserstein, WdTarget};
 use crate::synthesis::{flat_tensor, forward, host_weights, initial_parameters};
 
 /// Stage 2's default length per training view. On fox (58 training views) 34 crops per view
-/// gave DISTS 0.0803 where 17 gave 0.0844; fern's figures were measured at 59. A step takes
-/// about 1 s on the 2-core machines, so 32 costs about half a minute per view.
+/// gave DISTS 0.0803 where 17 gave 0.0844 and 64 gave no better (0.0816, with the pixel
+/// term). A step takes about 1 s on the 2-core machines, so 32 costs about half a minute per
+/// view.
 pub const DEFAULT_CROPS_PER_VIEW: u32 = 32;
+
+/// Stage 2's default least length: a scene with few views still gets this many steps. Fern (17
+/// views) gained from 578 to 1,088 steps (DISTS 0.0833 -> 0.0795 with the pixel term) and had
+/// its best figure at 1,000 (0.0722 without), where 32 per view would give it 544.
+pub const DEFAULT_MIN_STEPS: u32 = 1000;
 
 /// Which features WD compares.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +56,8 @@ pub struct WrapperTraining {
     pub start: u32,
     /// Stage 2's length per training view (see [`super::TrainConfig::schedule_stage_two`]).
     pub crops_per_view: u32,
+    /// Stage 2's least length, whatever the number of views.
+    pub min_steps: u32,
     pub log2_sigma: Log2Sigma,
     /// Side of the square crops WD scores (clamped to the image).
     pub crop: usize,
@@ -116,6 +124,13 @@ fn crop_log2_sigma(log2_sigma: &Log2Sigma, x0: usize, y0: usize, w: usize, h: us
 }
 
 impl WrapperTraining {
+    /// Stage 2's length on `train_views` views: `crops_per_view` per view, at least
+    /// `min_steps`.
+    pub fn stage_two_steps(&self, train_views: usize) -> u32 {
+        let per_view = u64::from(self.crops_per_view) * train_views as u64;
+        u32::try_from(per_view.max(u64::from(self.min_steps))).unwrap_or(u32::MAX)
+    }
+
     /// Checks the settings against the training `cameras` and loads what WD compares (VGG16
     /// unless pixels only). Training calls it before its first step, so that a missing weights
     /// file or an unusable setting is reported before stage 1 spends its time, not after.
@@ -282,6 +297,27 @@ mod tests {
         assert_eq!(c.values, vec![5.0, 6.0, 9.0, 10.0]);
     }
 
+    #[test]
+    fn stage_two_scales_with_the_views_above_its_floor() {
+        let settings = |crops_per_view, min_steps| WrapperTraining {
+            config: WrapperConfig { width: 4, noise: true, plucker: true, seed: 9 },
+            start: 0,
+            crops_per_view,
+            min_steps,
+            log2_sigma: Log2Sigma::Constant(2.0),
+            crop: 64,
+            learning_rate: 0.01,
+            features: WdFeatures::Pixels,
+            pixel_weight: 0.0,
+            cache_bytes: 0,
+        };
+        // Fern's 17 views and fox's 58 at the defaults: the floor, then 32 per view.
+        assert_eq!(settings(DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS).stage_two_steps(17), 1000);
+        assert_eq!(settings(DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS).stage_two_steps(58), 1856);
+        assert_eq!(settings(3, 0).stage_two_steps(7), 21);
+        assert_eq!(settings(u32::MAX, 0).stage_two_steps(3), u32::MAX, "saturates");
+    }
+
     /// Rendering only a crop's window must not change the loss: f's output on the crop is the
     /// same as on the whole image, including at the image's edges.
     #[test]
@@ -295,6 +331,7 @@ mod tests {
             config: WrapperConfig { width: 4, noise: true, plucker: true, seed: 9 },
             start: 0,
             crops_per_view: 1,
+            min_steps: 0,
             log2_sigma: Log2Sigma::Constant(2.0),
             crop: 64,
             learning_rate: 0.01,
