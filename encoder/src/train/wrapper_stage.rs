@@ -297,9 +297,9 @@ mod tests {
         assert_eq!(c.values, vec![5.0, 6.0, 9.0, 10.0]);
     }
 
-    #[test]
-    fn stage_two_scales_with_the_views_above_its_floor() {
-        let settings = |crops_per_view, min_steps| WrapperTraining {
+    /// Pixel-only settings of width 4 for the tests.
+    fn settings(crops_per_view: u32, min_steps: u32) -> WrapperTraining {
+        WrapperTraining {
             config: WrapperConfig { width: 4, noise: true, plucker: true, seed: 9 },
             start: 0,
             crops_per_view,
@@ -310,7 +310,11 @@ mod tests {
             features: WdFeatures::Pixels,
             pixel_weight: 0.0,
             cache_bytes: 0,
-        };
+        }
+    }
+
+    #[test]
+    fn stage_two_scales_with_the_views_above_its_floor() {
         // Fern's 17 views and fox's 58 at the defaults: the floor, then 32 per view.
         assert_eq!(settings(DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS).stage_two_steps(17), 1000);
         assert_eq!(settings(DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS).stage_two_steps(58), 1856);
@@ -327,18 +331,7 @@ mod tests {
         let (width, height) = (90, 75);
         let camera = axis_camera(width as u32, height as u32, 70.0, 70.0, 44.0, 37.0);
         let device = Device::flex();
-        let settings = WrapperTraining {
-            config: WrapperConfig { width: 4, noise: true, plucker: true, seed: 9 },
-            start: 0,
-            crops_per_view: 1,
-            min_steps: 0,
-            log2_sigma: Log2Sigma::Constant(2.0),
-            crop: 64,
-            learning_rate: 0.01,
-            features: WdFeatures::Pixels,
-            pixel_weight: 0.0,
-            cache_bytes: 0,
-        };
+        let settings = settings(1, 0);
         let frame = SceneFrame { center: glam::Vec3::ZERO, scale: 1.0 };
         let mut rng = SplitMix64(1);
         let wd = settings.prepare(&[camera], &device).unwrap();
