@@ -83,8 +83,8 @@ enum Base {
     /// Plain 3D Gaussians (position, scale, rotation, opacity, SH).
     #[value(name = "3dgs")]
     ThreeDgs,
-    /// Anchors whose MLPs give each view's Gaussians. Work in progress (issue 15): trains for
-    /// pixels and evaluates (--eval, --report); it has no stream format yet.
+    /// Anchors whose MLPs give each view's Gaussians, trained with a rate term (--lambda) and
+    /// written as an anchor stream (SPEC.md section 12). Not yet the default (issue 15).
     Anchor,
 }
 
