@@ -11,7 +11,7 @@ use super::entropy::{FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::OctreeError;
 use super::plain::{Models, PositionGrid, ValueCheck, read_block, read_positions, write_block, write_positions};
-use super::wrap::{MAX_EXPONENT, MAX_QUANTIZED, MIN_EXPONENT, power_of_two};
+use super::wrap::{MAX_EXPONENT, MIN_EXPONENT, power_of_two, quantize_to_step};
 use crate::anchor::{AnchorModel, Mlp};
 
 pub const ANCHOR_POSITIONS: Tag = Tag(*b"APOS");
@@ -53,10 +53,7 @@ impl QuantizedMlp {
     pub fn quantize(mlp: &Mlp, weight_exponent: i8, bias_exponent: i8) -> Self {
         let q = |values: &[f32], e: i8| {
             let step = power_of_two(e);
-            values
-                .iter()
-                .map(|&v| (v / step).round().clamp(-MAX_QUANTIZED as f32, MAX_QUANTIZED as f32) as i32)
-                .collect()
+            values.iter().map(|&v| quantize_to_step(v, step)).collect()
         };
         Self {
             hidden: mlp.hidden,

@@ -76,14 +76,6 @@ pub enum Content {
 }
 
 impl Content {
-    /// The plain content, for tools that only handle plain Gaussians.
-    pub fn plain(&self) -> Option<&PlainGaussians> {
-        match self {
-            Content::Plain(p) => Some(p),
-            Content::Anchors(_) => None,
-        }
-    }
-
     /// The base this content reconstructs (normative).
     pub fn dequantize(&self) -> Base {
         match self {

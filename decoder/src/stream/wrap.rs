@@ -43,6 +43,11 @@ pub fn power_of_two(e: i8) -> f32 {
     f32::from_bits(((127 + i32::from(e)) as u32) << 23)
 }
 
+/// `v` rounded to the nearest multiple of `step`, as an integer within the quantized range.
+pub fn quantize_to_step(v: f32, step: f32) -> i32 {
+    (v / step).round().clamp(-MAX_QUANTIZED as f32, MAX_QUANTIZED as f32) as i32
+}
+
 /// For every parameter in stream order, whether it is a bias.
 fn bias_mask(config: &WrapperConfig) -> Vec<bool> {
     let (w, cin) = (config.width, config.input_channels());
@@ -66,10 +71,7 @@ impl QuantizedSynthesis {
             .values()
             .iter()
             .zip(bias_mask(&weights.config))
-            .map(|(&v, bias)| {
-                let q = (v / if bias { bias_step } else { weight_step }).round();
-                q.clamp(-MAX_QUANTIZED as f32, MAX_QUANTIZED as f32) as i32
-            })
+            .map(|(&v, bias)| quantize_to_step(v, if bias { bias_step } else { weight_step }))
             .collect();
         Self { config: weights.config, weight_exponent, bias_exponent, values }
     }

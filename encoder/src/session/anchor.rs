@@ -95,6 +95,10 @@ pub struct AnchorReport {
 }
 
 pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
+    anyhow::ensure!(
+        job.lambda.is_none() || job.quantization_noise,
+        "the rate term (--lambda) needs the quantization noise"
+    );
     check_outputs(job.output.iter().chain(&job.report).chain(&job.export_ply), job.eval.iter().map(|e| &e.dir))?;
     let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let data =
@@ -124,7 +128,6 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         trainer = trainer.with_quantization_noise(job.steps, job.iterations / 10);
     }
     if let Some(lambda) = job.lambda {
-        anyhow::ensure!(job.quantization_noise, "the rate term (--lambda) needs the quantization noise");
         trainer = trainer.with_rate(lambda, job.iterations * 3 / 10);
     }
     let start = Instant::now();
@@ -155,10 +158,11 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     };
     let wrapper = match trainer.synthesis() {
         Some(weights) => {
-            // f's steps are chosen on renders of the anchors as the stream holds them.
-            let decoded = decode_own(&header, &content, None)?;
+            // f's steps are chosen on renders of the anchors as a decoder lists them (in the
+            // octree's order, which the depth sort's ties follow).
+            let (_, Decoded { scene: stored, .. }) = encode_and_decode(&header, &content, None)?;
             let options = RenderOptions { background: job.background, ..Default::default() };
-            let base_render = |camera: &Camera| render(&decoded.scene.gaussians_for(camera), camera, &options).data;
+            let base_render = |camera: &Camera| render(&stored.gaussians_for(camera), camera, &options).data;
             let w = quantize_wrapper(&weights, &base_render, &data, data.normalization.frame());
             print_wrapper(&w);
             Some(w)
@@ -238,8 +242,4 @@ fn encode_and_decode(
     let bytes = stream::encode(header, content, wrapper)?;
     let decoded = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
     Ok((bytes, decoded))
-}
-
-fn decode_own(header: &Header, content: &QuantizedAnchors, wrapper: Option<&QuantizedSynthesis>) -> Result<Decoded> {
-    encode_and_decode(header, content, wrapper).map(|(_, decoded)| decoded)
 }
