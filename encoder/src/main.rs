@@ -147,6 +147,13 @@ struct EncodeArgs {
     /// the learned masks off.
     #[arg(long, default_value_t = 0.002, value_parser = parse_weight)]
     lambda: f32,
+    /// With --base anchor and a rate term: measure the rate with a context model (a binary
+    /// grid over the anchors and an MLP giving each anchor's means and scales, HAC's hash-grid
+    /// context) instead of per-channel tables. Experimental: the stream does not code with it
+    /// yet, so this changes what training optimizes, and the report states the model's
+    /// estimated size beside the stream's.
+    #[arg(long)]
+    anchor_context: bool,
     /// Training iterations (0: evaluate the initialization).
     #[arg(long, default_value_t = 3000)]
     iters: u32,
@@ -407,6 +414,7 @@ impl EncodeArgs {
             steps: AnchorSteps::default().scaled(self.anchor_step_scale),
             quantization_noise: !self.no_quantization_noise,
             lambda: (self.lambda > 0.0).then_some(self.lambda),
+            context: self.anchor_context,
             wrapper: self.wrapper.training(self.iters, self.seed, self.weight_dirs())?,
             export_ply: self.export_ply.clone(),
             output: self.output.clone(),

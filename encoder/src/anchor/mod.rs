@@ -3,6 +3,7 @@
 //! model ([`quantize`]). The model itself, and how it turns into each view's Gaussians, is the
 //! decoder's [`pwgs_decoder::anchor`].
 
+pub mod context;
 pub mod init;
 pub mod quantize;
 pub mod rate;

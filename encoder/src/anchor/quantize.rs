@@ -56,7 +56,7 @@ pub fn anchor_grid(cells: &[[i64; 3]], voxel: f32) -> Result<(PositionGrid, Vec<
 }
 
 /// The integer coordinates of positions that lie on `grid` (as [`anchor_grid`] places them).
-fn grid_coordinates(positions: &[[f32; 3]], grid: &PositionGrid) -> Result<Vec<[u32; 3]>> {
+pub fn grid_coordinates(positions: &[[f32; 3]], grid: &PositionGrid) -> Result<Vec<[u32; 3]>> {
     positions
         .iter()
         .map(|p| {

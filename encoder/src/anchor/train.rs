@@ -30,6 +30,7 @@ use pwgs_decoder::gaussians::SH_C0;
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 
+use super::context::ContextLookup;
 use super::quantize::AnchorSteps;
 use super::rate::factorized_bits;
 use crate::metrics::ssim::{SsimConvention, ssim};
@@ -44,7 +45,8 @@ use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 /// The trained tensors, in this order: features [N, F], scaling [N, 6], offsets [N, 3K], then
 /// for each MLP (opacity, color, covariance) W1 [in, hidden], b1 [1, hidden], W2 [hidden, out],
 /// b2 [1, out]; then mask logits [N, K]; then the rate model's mean and log scale per channel
-/// of features [1, F], scaling [1, 6] and offsets [1, 3] (one per axis, as the stream's tables).
+/// of features [1, F], scaling [1, 6] and offsets [1, 3] (one per axis, as the stream's tables);
+/// then, with a context model, its grid and MLP ([`ContextLookup::initial_parameters`]).
 const PARAMETERS: usize = 22;
 
 /// Index of the mask logits among the parameters, and of the first rate-model tensor.
@@ -90,6 +92,8 @@ pub struct AnchorTrainer {
     noise: Option<(AnchorSteps, u32)>,
     /// λ and the iteration from which the rate term and the learned masks are on.
     rate_term: Option<(f32, u32)>,
+    /// The context model that replaces the factorized one in the rate term, when on.
+    context: Option<ContextLookup>,
     /// Stage 2's settings and what its WD compares, until it starts; then the stage.
     wrapper_settings: Option<(WrapperTraining, VggWasserstein)>,
     wrapper: Option<WrapperStage>,
@@ -214,6 +218,7 @@ impl AnchorTrainer {
             rng: SplitMix64(seed),
             noise: None,
             rate_term: None,
+            context: None,
             wrapper_settings: None,
             wrapper: None,
             frame: data.normalization.frame(),
@@ -233,6 +238,27 @@ impl AnchorTrainer {
     pub fn with_rate(mut self, lambda: f32, from: u32) -> Self {
         self.rate_term = Some((lambda, from));
         self
+    }
+
+    /// Takes the rate of every anchor's values from the context model of `lookup` (made for
+    /// this model's anchors, in its order) instead of the factorized model.
+    pub fn with_context(mut self, lookup: ContextLookup) -> Self {
+        let [_, f, k] = self.shape;
+        let outputs = 2 * (f + 6 + 3 * k);
+        let device = self.positions.device();
+        for p in lookup.initial_parameters(outputs, &mut self.rng, &device) {
+            self.moments.push((p.zeros_like(), p.zeros_like()));
+            self.params.push(p);
+        }
+        self.context = Some(lookup);
+        self
+    }
+
+    /// With a context model: the bits its grid's used signs take (an adaptive binary coder's
+    /// estimate).
+    pub fn context_grid_bits(&self) -> Option<f64> {
+        let lookup = self.context.as_ref()?;
+        Some(lookup.grid_bits(&tensor_values(self.params[PARAMETERS].clone())))
     }
 
     /// Trains the perceptual wrapper from `settings.start` on. Loads what WD compares now, so
@@ -419,7 +445,17 @@ impl AnchorTrainer {
     fn mean_bits(&self, attributes: &[Tensor<2>], tracked: &[Tensor<2>], gate: Tensor<2>, masks: &[bool]) -> Tensor<1> {
         let [n, f, k] = self.shape;
         let (steps, _) = self.noise.expect("the rate needs the quantization steps");
-        let model = |j: usize| (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone());
+        let widths = [f, 6, 3 * k];
+        let context = self.context.as_ref().map(|lookup| lookup.outputs(&tracked[PARAMETERS..]));
+        // Mean and log scale of group j: per anchor from the context model, else per channel.
+        let model = |j: usize| match &context {
+            Some(out) => {
+                let start = 2 * widths[..j].iter().sum::<usize>();
+                let w = widths[j];
+                (out.clone().slice([0..n, start..start + w]), out.clone().slice([0..n, start + w..start + 2 * w]))
+            }
+            None => (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone()),
+        };
         let anchor_open: Vec<f32> = masks.chunks_exact(k).map(|m| f32::from(u8::from(m.iter().any(|&o| o)))).collect();
         let anchor_open = host_tensor(&anchor_open, [n, 1], &self.positions.device()).autodiff();
         let (mean, scale) = model(0);
@@ -427,10 +463,23 @@ impl AnchorTrainer {
         let (mean, scale) = model(1);
         let scaling = factorized_bits(attributes[1].clone(), mean, scale, steps.scaling).sum_dim(1);
         let (mean, scale) = model(2);
-        let offsets = factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps.offset);
+        let offsets = match &context {
+            Some(_) => factorized_bits(attributes[2].clone(), mean, scale, steps.offset).reshape([n * k, 3]),
+            None => factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps.offset),
+        };
         let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
         let total = ((features + scaling) * anchor_open + offsets).sum();
         total / (n * (f + 6 + 3 * k)) as f32
+    }
+
+    pub fn device(&self) -> Device {
+        self.positions.device()
+    }
+
+    /// Values the rate term's mean is taken over: N x (F + 6 + 3K).
+    pub fn rated_values(&self) -> usize {
+        let [n, f, k] = self.shape;
+        n * (f + 6 + 3 * k)
     }
 
     /// The current model, as a decoder holds it.

@@ -12,8 +12,9 @@ use pwgs_decoder::stream::{self, Decoded};
 use serde::Serialize;
 
 use super::{WrapperSummary, check_outputs, print_wrapper, quantize_wrapper, section_sizes, write_report};
+use crate::anchor::context::{ContextLookup, default_shape};
 use crate::anchor::init::{AnchorShape, initial_model};
-use crate::anchor::quantize::{AnchorSteps, quantize};
+use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize};
 use crate::anchor::train::AnchorTrainer;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
@@ -42,6 +43,9 @@ pub struct AnchorJob {
     /// λ of the rate term (from 30% of the iterations on, with learned masks); `None`: no rate
     /// term, every mask open.
     pub lambda: Option<f32>,
+    /// Measure the rate term with the context model (experimental: the stream does not code
+    /// with it yet).
+    pub context: bool,
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
     pub wrapper: Option<WrapperTraining>,
@@ -86,6 +90,10 @@ pub struct AnchorReport {
     pub last_step_gaussians: usize,
     pub quantization_noise: bool,
     pub lambda: Option<f32>,
+    /// The rate model's estimate of the attributes' size at the last step, in bytes.
+    pub estimated_attribute_bytes: Option<f64>,
+    /// With the context model: its grid's size as an adaptive binary coder would code it.
+    pub context_grid_bytes: Option<f64>,
     /// Anchors in the stream (those with an open mask).
     pub stream_anchors: usize,
     /// The stream (also when none was written to a file: the evaluation renders its decoding).
@@ -99,6 +107,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         job.lambda.is_none() || job.quantization_noise,
         "the rate term (--lambda) needs the quantization noise"
     );
+    anyhow::ensure!(!job.context || job.lambda.is_some(), "the context model (--anchor-context) needs the rate term");
     check_outputs(job.output.iter().chain(&job.report).chain(&job.export_ply), job.eval.iter().map(|e| &e.dir))?;
     let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let data =
@@ -130,11 +139,19 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if let Some(lambda) = job.lambda {
         trainer = trainer.with_rate(lambda, job.iterations * 3 / 10);
     }
+    if job.context {
+        let coords = grid_coordinates(&initial.positions, &grid)?;
+        let lookup = ContextLookup::new(default_shape(), &coords, grid.depth, &trainer.device());
+        println!("context grid: {} entries in {} levels", lookup.entries, lookup.shape.levels.len());
+        trainer = trainer.with_context(lookup);
+    }
     let start = Instant::now();
     let mut last_step_gaussians = 0;
+    let mut last_bits = None;
     while trainer.iteration < trainer.iterations {
         let step = trainer.step()?;
         last_step_gaussians = step.gaussians;
+        last_bits = step.bits_per_value;
         let it = trainer.iteration;
         if it % 100 == 0 || it == trainer.iterations {
             let rate = f64::from(it) / start.elapsed().as_secs_f64().max(1e-9);
@@ -147,6 +164,15 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     }
     let training_seconds = start.elapsed().as_secs_f64();
     println!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
+    // What the rate model says the attributes cost (at the last step's noisy values), to set
+    // beside the stream's sections.
+    let estimated_attribute_bytes = last_bits.map(|b| f64::from(b) * trainer.rated_values() as f64 / 8.0);
+    let context_grid_bytes = trainer.context_grid_bits().map(|b| b / 8.0);
+    if let Some(bytes) = estimated_attribute_bytes {
+        let grid = context_grid_bytes.map(|g| format!(", grid {g:.0} bytes")).unwrap_or_default();
+        let model = if job.context { "context" } else { "factorized" };
+        println!("rate model ({model}) estimate: attributes {bytes:.0} bytes{grid}");
+    }
     let content = quantize(&trainer.model(), &grid, &job.steps)?;
     let header = Header {
         base: BaseKind::Anchors,
@@ -222,6 +248,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         last_step_gaussians,
         quantization_noise: job.quantization_noise,
         lambda: job.lambda,
+        estimated_attribute_bytes,
+        context_grid_bytes,
         stream_anchors: content.len(),
         stream: stream_summary,
         mean,
