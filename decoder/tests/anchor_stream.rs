@@ -2,8 +2,10 @@
 //! or oversized input with an error naming the problem.
 
 use pwgs_bitstream::{Container, Tag, write_container};
+use pwgs_decoder::context_grid::ContextGridShape;
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera};
 use pwgs_decoder::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::anchor_context::{self, AnchorModels, QuantizedContext};
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::plain::PositionGrid;
 use pwgs_decoder::stream::{self, Content};
@@ -53,6 +55,7 @@ fn anchors_with_features(n: usize, f: usize, seed: u64) -> QuantizedAnchors {
         offsets: ints(&mut rng, n * 3 * k, 30.0),
         masks: (0..n * k).map(|i| i % 5 != 0).collect(),
         mlps: [mlp(&mut rng, f + 4, 6, k), mlp(&mut rng, f + 4, 4, 3 * k), mlp(&mut rng, f + 4, 5, 7 * k)],
+        context: None,
     }
 }
 
@@ -231,6 +234,92 @@ fn every_truncation_and_byte_flip_is_an_error_or_a_decode() {
         let at = (rng.next_u64() % b.len() as u64) as usize;
         b[at] ^= 1 << (rng.next_u64() % 8);
         // Recompute CRCs so that the mutation reaches the payload parsers.
+        pwgs_bitstream::reseal(&mut b);
+        if let Ok(d) = stream::decode(&b) {
+            assert_eq!(d.scene.base, d.content.dequantize());
+        }
+    }
+}
+
+/// A context model for anchors of F = 5, K = 3 on a 6-level grid: random signs, a network
+/// whose means spread over tens of units and whose scales are all 1 unit.
+fn random_context(seed: u64) -> QuantizedContext {
+    let mut rng = SplitMix64(seed);
+    let shape = ContextGridShape { levels: vec![1, 2, 4], table_log2: 6, channels: 2 };
+    let signs = (0..shape.entries(6) * 2).map(|_| rng.next_u64() & 1 == 1).collect();
+    let values = anchor_context::predicted_values(5, 3);
+    let mut mlp =
+        QuantizedMlp { weight_exponent: -4, bias_exponent: -4, ..mlp(&mut rng, shape.context_len(), 8, 2 * values) };
+    mlp.w2[values * 8..].fill(0);
+    mlp.b2[values..].fill(0);
+    QuantizedContext { shape, signs, mlp }
+}
+
+/// Anchors whose values lie within a unit of what `context` predicts for them.
+fn predictable_anchors(n: usize, context: QuantizedContext, seed: u64) -> QuantizedAnchors {
+    let mut content = random_anchors(n, seed);
+    let mut rng = SplitMix64(seed ^ 0xc0de);
+    let (f, k) = (5, 3);
+    let mut models = AnchorModels::new(&context, content.grid.depth, f, k);
+    for i in 0..n {
+        models.evaluate(content.positions[i]);
+        let mut draw = |t: usize| (models.model(t).mean as f32 / 64.0).round() as i32 + ints(&mut rng, 1, 1.0)[0];
+        (0..f).for_each(|c| content.features[i * f + c] = draw(c));
+        (0..6).for_each(|c| content.scaling[i][c] = draw(f + c));
+        for j in 0..k {
+            for a in 0..3 {
+                let open = content.masks[i * k + j];
+                content.offsets[(i * k + j) * 3 + a] = if open { draw(f + 6 + 3 * j + a) } else { 0 };
+            }
+        }
+    }
+    content.context = Some(context);
+    content
+}
+
+fn attribute_bytes(bytes: &[u8]) -> usize {
+    let c = Container::parse(bytes).unwrap();
+    [anchor::FEATURES, anchor::SCALING, anchor::OFFSETS].iter().map(|&t| c.section(t).unwrap().payload.len()).sum()
+}
+
+#[test]
+fn context_coded_streams_round_trip_and_code_predictable_values_smaller() {
+    let content = predictable_anchors(400, random_context(12), 13);
+    let bytes = encode(&content);
+    assert!(Container::parse(&bytes).unwrap().section(anchor_context::CONTEXT).is_some());
+    let decoded = stream::decode(&bytes).unwrap();
+    assert_eq!(decoded.content, Content::Anchors(Box::new(reordered(&content))));
+    // The same values with one model per channel: the spread of the predicted means costs
+    // bits that the context model does not pay.
+    let plain = QuantizedAnchors { context: None, ..content.clone() };
+    let (with, without) = (attribute_bytes(&bytes), attribute_bytes(&encode(&plain)));
+    assert!((with as f64) < 0.7 * without as f64, "{with} bytes with the context, {without} without");
+}
+
+#[test]
+fn corrupt_context_sections_are_named() {
+    let bytes = encode(&predictable_anchors(60, random_context(14), 15));
+    let context = |edit: &dyn Fn(&mut Vec<u8>)| with_payload(&bytes, anchor_context::CONTEXT, edit);
+    let cases: Vec<(Vec<u8>, &str, &str)> = vec![
+        (context(&|p| p[0] = 0), "ACTX", "levels"),
+        (context(&|p| p[1] = 0), "ACTX", "level"),
+        (context(&|p| p[4] = 3), "ACTX", "table log2"),
+        (context(&|p| p[5] = 9), "ACTX", "channels"),
+        // A dense finest level of 65^3 entries: far more grid than the stream's bytes allow.
+        (context(&|p| (p[3], p[4]) = (20, 22)), "ACTX", "exceeds the stream's length"),
+        (context(&|p| p.truncate(p.len() / 2)), "ACTX", "coded data"),
+        (with_payload(&bytes, anchor::SCALING, |p| p.truncate(6)), "ASCL", "coded data"),
+    ];
+    for (stream_bytes, tag, needle) in cases {
+        let Err(err) = stream::decode(&stream_bytes).map(|_| ()) else { panic!("the case naming {needle} decoded") };
+        let err = err.to_string();
+        assert!(err.contains(tag) && err.contains(needle), "{err} should name {tag} and {needle}");
+    }
+    let mut rng = SplitMix64(16);
+    for _ in 0..1000 {
+        let mut b = bytes.clone();
+        let at = (rng.next_u64() % b.len() as u64) as usize;
+        b[at] ^= 1 << (rng.next_u64() % 8);
         pwgs_bitstream::reseal(&mut b);
         if let Ok(d) = stream::decode(&b) {
             assert_eq!(d.scene.base, d.content.dequantize());

@@ -147,11 +147,9 @@ struct EncodeArgs {
     /// the learned masks off.
     #[arg(long, default_value_t = 0.002, value_parser = parse_weight)]
     lambda: f32,
-    /// With --base anchor and a rate term: measure the rate with a context model (a binary
-    /// grid over the anchors and an MLP giving each anchor's means and scales, HAC's hash-grid
-    /// context) instead of per-channel tables. Experimental: the stream does not code with it
-    /// yet, so this changes what training optimizes, and the report states the model's
-    /// estimated size beside the stream's.
+    /// With --base anchor and a rate term: train and code the anchors' values with a context
+    /// model (a binary grid over the anchors and an MLP giving each anchor's means and scales,
+    /// HAC's hash-grid context; SPEC.md section 12.7) instead of one model per channel.
     #[arg(long)]
     anchor_context: bool,
     /// Training iterations (0: evaluate the initialization).

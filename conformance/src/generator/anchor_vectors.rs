@@ -3,7 +3,9 @@
 //! break its syntax.
 
 use pwgs_bitstream::{Container, Tag, reseal, write_container};
+use pwgs_decoder::context_grid::ContextGridShape;
 use pwgs_decoder::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::anchor_context::{self, QuantizedContext};
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::plain::PositionGrid;
 use pwgs_decoder::stream::{self, PADDING};
@@ -66,6 +68,7 @@ pub fn synthetic_anchors(n: usize, seed: u64) -> QuantizedAnchors {
             mlp(&mut draws, 8, 3 * k, &|_| [-60, 60]),
             mlp(&mut draws, 8, 7 * k, &covariance_bias),
         ],
+        context: None,
     }
 }
 
@@ -84,8 +87,32 @@ pub fn encode(content: &QuantizedAnchors) -> Vec<u8> {
     stream::encode(&header(content), content, None).expect("the synthetic anchors fit the octree")
 }
 
+/// `anchors` with a context model (SPEC.md section 12.7): a dense, a hashed and a voxel-fine
+/// level of 2 channels, and a network whose means spread over tens of units and whose scales
+/// range from a fraction of a unit to hundreds, so that the synthetic values exercise moved
+/// tables and escapes.
+pub fn with_context(mut content: QuantizedAnchors, seed: u64) -> QuantizedAnchors {
+    let mut draws = Draws::new(seed);
+    let shape = ContextGridShape { levels: vec![1, 3, 5], table_log2: 7, channels: 2 };
+    let signs = (0..shape.entries(content.grid.depth) * 2).map(|_| draws.i32([0, 1]) == 1).collect();
+    let (inputs, hidden) = (shape.context_len(), 6);
+    let outputs = 2 * anchor_context::predicted_values(FEATURES, OFFSETS);
+    let mut many = |n: usize, range: [i32; 2]| (0..n).map(|_| draws.i32(range)).collect::<Vec<_>>();
+    let mlp = QuantizedMlp {
+        hidden,
+        weight_exponent: -4,
+        bias_exponent: -3,
+        w1: many(hidden * inputs, [-30, 30]),
+        b1: many(hidden, [0, 20]),
+        w2: many(outputs * hidden, [-12, 12]),
+        b2: many(outputs, [-24, 24]),
+    };
+    content.context = Some(QuantizedContext { shape, signs, mlp });
+    content
+}
+
 pub fn vectors() -> Vec<Vector> {
-    vec![Vector {
+    let mut v = vec![Vector {
         name: "anchors",
         description: format!(
             "Base kind 1: 120 anchors (F = {FEATURES}, K = {OFFSETS}, every fifth mask shut) with networks of width 8: \
@@ -102,7 +129,18 @@ pub fn vectors() -> Vec<Vector> {
         ],
         stream: encode(&synthetic_anchors(120, 31)),
         cameras: &["front", "side"],
-    }]
+    }];
+    v.push(Vector {
+        name: "anchors-context",
+        description: format!(
+            "Base kind 1 with ACTX: 120 anchors (F = {FEATURES}, K = {OFFSETS}) coded with a context model of 3 \
+             levels (dense, hashed, voxel-fine) and 2 channels, every value with its own Gaussian model."
+        ),
+        clauses: vec!["S12.7-context", "S12.6-hash", "S5.4-gaussian"],
+        stream: encode(&with_context(synthetic_anchors(120, 35), 36)),
+        cameras: &["front"],
+    });
+    v
 }
 
 /// The payload of `tag` in `bytes` replaced by `edit`'s, CRCs sealed again.
@@ -142,7 +180,23 @@ pub fn refusals() -> Vec<Refusal> {
             container.sections.iter().filter(|s| s.tag != PADDING).map(|s| (s.tag, s.payload.to_vec())).collect();
         write_container(&sections)
     };
+    let with_grid = encode(&with_context(synthetic_anchors(40, 37), 38));
     vec![
+        refusal(
+            "anchor-context-level",
+            "S12.7-context",
+            "section 'ACTX', field `level` … 0 is outside 1..=24",
+            "ACTX declares a level of resolution 2^0.",
+            edited(&with_grid, anchor_context::CONTEXT, |p| p[1] = 0),
+        ),
+        refusal(
+            "anchor-context-grid-bound",
+            "S12.7-context",
+            "section 'ACTX': a grid of",
+            "ACTX's levels made dense (27 + 9^3 + 33^3 entries) with 8 channels: more than 64 grid bits per byte of \
+             the stream.",
+            edited(&with_grid, anchor_context::CONTEXT, |p| (p[4], p[5]) = (22, 8)),
+        ),
         refusal(
             "anchor-sh-degree",
             "S4-sh-degree",

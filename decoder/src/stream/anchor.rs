@@ -7,6 +7,9 @@
 use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
+use super::anchor_context::{
+    AnchorModels, CONTEXT, ContextBlocks, QuantizedContext, predicted_values, read_blocks, write_blocks,
+};
 use super::entropy::{FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::OctreeError;
@@ -110,6 +113,9 @@ pub struct QuantizedAnchors {
     pub masks: Vec<bool>,
     /// Opacity (K outputs), color (3K) and covariance (7K), each with F + 4 inputs.
     pub mlps: [QuantizedMlp; 3],
+    /// The context model that codes features, scaling and offsets, if any (else each channel
+    /// has its own model).
+    pub context: Option<QuantizedContext>,
 }
 
 impl QuantizedAnchors {
@@ -156,13 +162,33 @@ impl QuantizedAnchors {
             write_block(&mut w, models, &order, channels, value);
             w.into_bytes()
         };
+        let masks = (MASKS, block(Models::Tables, &[], k, &|i, c| i32::from(self.masks[i * k + c])));
+        let Some(context) = &self.context else {
+            return Ok(vec![
+                (NETWORKS, self.write_networks()),
+                (ANCHOR_POSITIONS, positions),
+                (FEATURES, block(Models::Gaussians, &[self.feature_step], f, &|i, c| self.features[i * f + c])),
+                (SCALING, block(Models::Gaussians, &[self.scaling_step], 6, &|i, c| self.scaling[i][c])),
+                masks,
+                (OFFSETS, self.write_offsets(&order)),
+            ]);
+        };
+        let mut models = AnchorModels::new(context, self.grid.depth, f, k);
+        let blocks = ContextBlocks {
+            steps: [self.feature_step, self.scaling_step, self.offset_step],
+            features: self.features.clone(),
+            scaling: self.scaling.iter().flatten().copied().collect(),
+            offsets: self.offsets.clone(),
+        };
+        let [features, scaling, offsets] = write_blocks(&mut models, &order, &self.positions, &blocks, &self.masks);
         Ok(vec![
             (NETWORKS, self.write_networks()),
             (ANCHOR_POSITIONS, positions),
-            (FEATURES, block(Models::Gaussians, &[self.feature_step], f, &|i, c| self.features[i * f + c])),
-            (SCALING, block(Models::Gaussians, &[self.scaling_step], 6, &|i, c| self.scaling[i][c])),
-            (MASKS, block(Models::Tables, &[], k, &|i, c| i32::from(self.masks[i * k + c]))),
-            (OFFSETS, self.write_offsets(&order)),
+            (CONTEXT, context.write(self.grid.depth)),
+            (FEATURES, features),
+            (SCALING, scaling),
+            masks,
+            (OFFSETS, offsets),
         ])
     }
 
@@ -222,6 +248,30 @@ impl QuantizedAnchors {
             ));
         }
         let (grid, positions) = read_positions(ANCHOR_POSITIONS, positions, count)?;
+        if let Some(section) = container.section(CONTEXT) {
+            let values = predicted_values(feature_dim, k);
+            let context = QuantizedContext::read(section.payload, grid.depth, values, stream_len)?;
+            let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), count)?;
+            let masks: Vec<bool> = masks.into_iter().map(|m| m == 1).collect();
+            let mut models = AnchorModels::new(&context, grid.depth, feature_dim, k);
+            let blocks = read_blocks([features, scaling, offsets], &mut models, &positions, &masks)?;
+            let [feature_step, scaling_step, offset_step] = blocks.steps;
+            return Ok(Self {
+                grid,
+                positions,
+                feature_dim,
+                offsets_per_anchor: k,
+                feature_step,
+                features: blocks.features,
+                scaling_step,
+                scaling: blocks.scaling.chunks_exact(6).map(|c| std::array::from_fn(|i| c[i])).collect(),
+                offset_step,
+                offsets: blocks.offsets,
+                masks,
+                mlps,
+                context: Some(context),
+            });
+        }
         let any: ValueCheck = |_, _| Ok(());
         let gaussians = |channels| (Models::Gaussians, 1, channels, any);
         let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), count)?;
@@ -249,6 +299,7 @@ impl QuantizedAnchors {
             offsets,
             masks,
             mlps,
+            context: None,
         })
     }
 }
@@ -296,7 +347,7 @@ fn read_networks(payload: &[u8]) -> Result<(usize, usize, [QuantizedMlp; 3]), De
 }
 
 /// A varint field that must be 1 to `max`.
-fn bounded(r: &mut FieldReader, field: &'static str, max: usize) -> Result<usize, FieldError> {
+pub(super) fn bounded(r: &mut FieldReader, field: &'static str, max: usize) -> Result<usize, FieldError> {
     let v = r.varint(field)? as usize;
     match (1..=max).contains(&v) {
         true => Ok(v),
@@ -305,7 +356,7 @@ fn bounded(r: &mut FieldReader, field: &'static str, max: usize) -> Result<usize
 }
 
 /// A step exponent (i8), -30 to 0.
-fn exponent(r: &mut FieldReader, field: &'static str) -> Result<i8, FieldError> {
+pub(super) fn exponent(r: &mut FieldReader, field: &'static str) -> Result<i8, FieldError> {
     let e = r.u8(field)? as i8;
     match (MIN_EXPONENT..=MAX_EXPONENT).contains(&e) {
         true => Ok(e),

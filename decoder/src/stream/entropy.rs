@@ -139,7 +139,12 @@ impl FrequencyTable {
     }
 
     fn symbol_of(&self, value: i32) -> (u32, bool) {
-        let i = i64::from(value) - i64::from(self.lo);
+        self.symbol_of_shifted(value, 0)
+    }
+
+    /// The symbol of `value` in the table moved by `shift`, and whether it is the escape.
+    fn symbol_of_shifted(&self, value: i32, shift: i32) -> (u32, bool) {
+        let i = i64::from(value) - i64::from(self.lo) - i64::from(shift);
         if (0..i64::from(self.symbols())).contains(&i) { (i as u32, false) } else { (self.escape(), true) }
     }
 }
@@ -292,8 +297,15 @@ impl SymbolEncoder {
     /// Codes a value with a table (escaping it when out of range). Panics if the value's
     /// magnitude reaches 2^24: quantizers must keep values inside the spec's range.
     pub fn value(&mut self, table: &FrequencyTable, value: i32) {
+        self.shifted_value(table, 0, value);
+    }
+
+    /// Codes a value with `table` moved by `shift` (its range `lo + shift ..`): the table of a
+    /// Gaussian model whose mean is `shift` units further (SPEC.md section 5.4). An escape
+    /// codes the value itself.
+    pub fn shifted_value(&mut self, table: &FrequencyTable, shift: i32, value: i32) {
         assert!(value.abs() < MAX_MAGNITUDE, "quantized value {value} out of the spec's range");
-        let (symbol, escaped) = table.symbol_of(value);
+        let (symbol, escaped) = table.symbol_of_shifted(value, shift);
         self.put(symbol, Model(ModelKind::Table(table)));
         if escaped {
             let z = ((value << 1) ^ (value >> 31)) as u32;
@@ -374,9 +386,15 @@ impl<'a> SymbolDecoder<'a> {
     }
 
     pub fn value(&mut self, table: &FrequencyTable) -> Result<i32, EntropyError> {
+        self.shifted_value(table, 0)
+    }
+
+    /// Decodes a value coded with [`SymbolEncoder::shifted_value`]. The caller keeps the moved
+    /// range within ±(2^24 - 1) (SPEC.md section 5.4 bounds a model's mean).
+    pub fn shifted_value(&mut self, table: &FrequencyTable, shift: i32) -> Result<i32, EntropyError> {
         let symbol = self.get(Model(ModelKind::Table(table)))?;
         if symbol != table.escape() {
-            return Ok(table.lo + symbol as i32);
+            return Ok(table.lo + shift + symbol as i32);
         }
         let low = self.get(Model(ModelKind::Raw16))?;
         let high = self.get(Model(ModelKind::Raw16))?;
@@ -385,7 +403,7 @@ impl<'a> SymbolDecoder<'a> {
         if value.abs() >= i64::from(MAX_MAGNITUDE) {
             return Err(EntropyError::EscapeOutOfRange(value));
         }
-        if !table.symbol_of(value as i32).1 {
+        if !table.symbol_of_shifted(value as i32, shift).1 {
             return Err(EntropyError::EscapeInRange(value));
         }
         Ok(value as i32)

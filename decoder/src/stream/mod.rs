@@ -2,6 +2,7 @@
 //! Gaussians. The container syntax itself lives in `pwgs-bitstream`.
 
 pub mod anchor;
+pub mod anchor_context;
 pub mod entropy;
 pub mod gaussian_model;
 pub mod header;
@@ -57,10 +58,11 @@ const PLAIN_SECTIONS: [Tag; 8] = [
 ];
 
 /// Critical sections an anchor stream may hold.
-const ANCHOR_SECTIONS: [Tag; 8] = [
+const ANCHOR_SECTIONS: [Tag; 9] = [
     Tag::HEAD,
     anchor::NETWORKS,
     anchor::ANCHOR_POSITIONS,
+    anchor_context::CONTEXT,
     anchor::FEATURES,
     anchor::SCALING,
     anchor::MASKS,
@@ -137,7 +139,9 @@ impl ContentRef<'_> {
             ContentRef::Plain(p) => p.len(),
             ContentRef::Anchors(a) => {
                 let values = a.len() as u64 * anchor::values_per_anchor(a.feature_dim, a.offsets_per_anchor);
-                a.len().max(values.div_ceil(anchor::VALUES_PER_BYTE) as usize)
+                let grid_bits = a.context.as_ref().map_or(0, |c| c.signs.len() as u64);
+                let grid = grid_bits.div_ceil(anchor_context::GRID_BITS_PER_BYTE) as usize;
+                a.len().max(values.div_ceil(anchor::VALUES_PER_BYTE) as usize).max(grid)
             }
         }
     }

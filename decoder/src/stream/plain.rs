@@ -316,6 +316,16 @@ pub(super) fn write_block(
     w.extend(&coder.finish());
 }
 
+/// A block's step field: finite and positive, and small enough that every quantized value
+/// (below 2^24 in magnitude) times it stays finite.
+pub(super) fn read_step(r: &mut FieldReader) -> Result<f32, FieldError> {
+    let s = r.f32("step")?;
+    match s > 0.0 && (s * MAX_MAGNITUDE as f32).is_finite() {
+        true => Ok(s),
+        false => Err(r.error("step", format!("{s} is not positive or too large"))),
+    }
+}
+
 /// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
 /// `count` rows, each value passing `check` as it is decoded.
 pub(super) fn read_block(
@@ -326,15 +336,7 @@ pub(super) fn read_block(
 ) -> Result<Block, DecodeError> {
     let name = String::from_utf8_lossy(&tag.0).into_owned();
     let mut r = FieldReader::new(&name, payload);
-    let mut step_values = Vec::with_capacity(steps);
-    for _ in 0..steps {
-        let s = r.f32("step")?;
-        // Every quantized value (below 2^24 in magnitude) times the step must stay finite.
-        if !(s > 0.0 && (s * MAX_MAGNITUDE as f32).is_finite()) {
-            return Err(r.error("step", format!("{s} is not positive or too large")).into());
-        }
-        step_values.push(s);
-    }
+    let step_values = (0..steps).map(|_| read_step(&mut r)).collect::<Result<Vec<f32>, FieldError>>()?;
     let tables = (0..channels).map(|_| models.read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
     let coded = |e: EntropyError| DecodeError::coded(tag, e);
     let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;

@@ -4,8 +4,10 @@
 //! result is the model every view is rendered from, so evaluation always goes through it.
 
 use anyhow::{Result, bail, ensure};
-use pwgs_decoder::anchor::AnchorModel;
+use pwgs_decoder::anchor::{AnchorModel, Mlp};
+use pwgs_decoder::context_grid::ContextGridShape;
 use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::anchor_context::QuantizedContext;
 use pwgs_decoder::stream::octree::MAX_DEPTH;
 use pwgs_decoder::stream::plain::PositionGrid;
 
@@ -104,7 +106,45 @@ pub fn quantize(model: &AnchorModel, grid: &PositionGrid, steps: &AnchorSteps) -
         offsets,
         masks,
         mlps: [&model.opacity, &model.color, &model.covariance].map(|m| QuantizedMlp::quantize(m, e_w, e_b)),
+        context: None,
     })
+}
+
+/// A trained context model ([`super::context`]): the grid's float entries (entry-major) and
+/// the network as a decoder evaluates it.
+pub struct TrainedContext {
+    pub shape: ContextGridShape,
+    pub grid: Vec<f32>,
+    pub mlp: Mlp,
+}
+
+/// Adds the context model to `content`: the grid's signs and the network's weights at the
+/// MLPs' steps. Entries no stored anchor weighs take the commonest sign of their channel,
+/// which the adaptive coder then codes almost for free.
+pub fn quantize_context(content: &mut QuantizedAnchors, trained: &TrainedContext, steps: &AnchorSteps) {
+    let depth = content.grid.depth;
+    let c = usize::from(trained.shape.channels);
+    let entries = trained.shape.entries(depth) as usize;
+    let mut used = vec![false; entries];
+    let mut corners = Vec::new();
+    for &q in &content.positions {
+        corners.clear();
+        trained.shape.corners(q, depth, &mut corners);
+        corners.iter().filter(|k| k.weight > 0.0).for_each(|k| used[k.entry as usize] = true);
+    }
+    let sign = |e: usize, ch: usize| trained.grid[e * c + ch] >= 0.0;
+    let common: Vec<bool> = (0..c)
+        .map(|ch| {
+            let ones = (0..entries).filter(|&e| used[e] && sign(e, ch)).count();
+            2 * ones >= used.iter().filter(|&&u| u).count()
+        })
+        .collect();
+    let signs = (0..entries * c).map(|i| if used[i / c] { sign(i / c, i % c) } else { common[i % c] }).collect();
+    content.context = Some(QuantizedContext {
+        shape: trained.shape.clone(),
+        signs,
+        mlp: QuantizedMlp::quantize(&trained.mlp, steps.weight_exponent, steps.bias_exponent),
+    });
 }
 
 #[cfg(test)]

@@ -17,8 +17,11 @@
 //! view with WD through the perceptual wrapper f, which trains jointly, exactly as on the plain
 //! base ([`crate::train::wrapper_stage`]); the rate term stays on.
 //!
-//! Anchors stay where initialization put them; growing and pruning anchors and the hash-grid
-//! context model come next (issue 15).
+//! With a context model ([`super::context`]), the rate's means and scales come per anchor
+//! from the model's grid and network instead of per channel.
+//!
+//! Anchors stay where initialization put them; growing and pruning anchors come next (issue
+//! 15).
 
 use anyhow::{Result, bail};
 use burn::tensor::activation::{log_sigmoid, sigmoid};
@@ -31,7 +34,7 @@ use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 
 use super::context::ContextLookup;
-use super::quantize::AnchorSteps;
+use super::quantize::{AnchorSteps, TrainedContext};
 use super::rate::factorized_bits;
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::metrics::vgg_wasserstein::VggWasserstein;
@@ -261,6 +264,16 @@ impl AnchorTrainer {
         Some(lookup.grid_bits(&tensor_values(self.params[PARAMETERS].clone())))
     }
 
+    /// The trained context model, when there is one.
+    pub fn context_model(&self) -> Option<TrainedContext> {
+        let lookup = self.context.as_ref()?;
+        Some(TrainedContext {
+            shape: lookup.shape.clone(),
+            grid: tensor_values(self.params[PARAMETERS].clone()),
+            mlp: mlp_of(&self.params[PARAMETERS + 1..PARAMETERS + 5]),
+        })
+    }
+
     /// Trains the perceptual wrapper from `settings.start` on. Loads what WD compares now, so
     /// that missing weights are reported before any training.
     pub fn with_wrapper(mut self, settings: WrapperTraining) -> Result<Self> {
@@ -445,14 +458,18 @@ impl AnchorTrainer {
     fn mean_bits(&self, attributes: &[Tensor<2>], tracked: &[Tensor<2>], gate: Tensor<2>, masks: &[bool]) -> Tensor<1> {
         let [n, f, k] = self.shape;
         let (steps, _) = self.noise.expect("the rate needs the quantization steps");
-        let widths = [f, 6, 3 * k];
+        let (widths, group_steps) = ([f, 6, 3 * k], [steps.feature, steps.scaling, steps.offset]);
+        let values = f + 6 + 3 * k;
         let context = self.context.as_ref().map(|lookup| lookup.outputs(&tracked[PARAMETERS..]));
-        // Mean and log scale of group j: per anchor from the context model, else per channel.
+        // Mean and log scale of group j: per anchor from the context model (whose outputs are,
+        // per value, the mean in steps, then log2 of the scale in steps: SPEC.md section 12.7),
+        // else per channel.
         let model = |j: usize| match &context {
             Some(out) => {
-                let start = 2 * widths[..j].iter().sum::<usize>();
-                let w = widths[j];
-                (out.clone().slice([0..n, start..start + w]), out.clone().slice([0..n, start + w..start + 2 * w]))
+                let (start, w, step) = (widths[..j].iter().sum::<usize>(), widths[j], group_steps[j]);
+                let mean = out.clone().slice([0..n, start..start + w]) * step;
+                let log2_scale = out.clone().slice([0..n, values + start..values + start + w]);
+                (mean, log2_scale * std::f32::consts::LN_2 + step.ln())
             }
             None => (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone()),
         };

@@ -14,7 +14,7 @@ use serde::Serialize;
 use super::{WrapperSummary, check_outputs, print_wrapper, quantize_wrapper, section_sizes, write_report};
 use crate::anchor::context::{ContextLookup, default_shape};
 use crate::anchor::init::{AnchorShape, initial_model};
-use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize};
+use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use crate::anchor::train::AnchorTrainer;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
@@ -43,8 +43,7 @@ pub struct AnchorJob {
     /// λ of the rate term (from 30% of the iterations on, with learned masks); `None`: no rate
     /// term, every mask open.
     pub lambda: Option<f32>,
-    /// Measure the rate term with the context model (experimental: the stream does not code
-    /// with it yet).
+    /// Train and code with the context model (SPEC.md section 12.7).
     pub context: bool,
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
@@ -173,7 +172,10 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let model = if job.context { "context" } else { "factorized" };
         println!("rate model ({model}) estimate: attributes {bytes:.0} bytes{grid}");
     }
-    let content = quantize(&trainer.model(), &grid, &job.steps)?;
+    let mut content = quantize(&trainer.model(), &grid, &job.steps)?;
+    if let Some(trained) = trainer.context_model() {
+        quantize_context(&mut content, &trained, &job.steps);
+    }
     let header = Header {
         base: BaseKind::Anchors,
         gaussian_count: u32::try_from(content.len()).context("too many anchors for a stream")?,

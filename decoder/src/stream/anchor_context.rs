@@ -1,0 +1,314 @@
+//! `ACTX`, the anchors' context model (SPEC.md section 12.7): a binary context grid over the
+//! anchors' octree cube ([`crate::context_grid`]) and a small MLP that turns each anchor's
+//! context into a quantized-Gaussian model (section 5.4) for every one of its values. With it,
+//! `AFEA`, `ASCL` and `AOFF` carry no models of their own, and their chunks are decoded
+//! together, anchor by anchor, so that each anchor's network is evaluated once.
+//!
+//! The network's weights are quantized to power-of-two steps and evaluated in binary32 in a
+//! fixed order, the context is exact, and the outputs are snapped to the model grids, so every
+//! decoder derives the same tables.
+
+use std::collections::HashMap;
+
+use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
+
+use super::DecodeError;
+use super::anchor::{QuantizedMlp, bounded, exponent};
+use super::entropy::{BitContext, FrequencyTable, SymbolDecoder, SymbolEncoder};
+use super::gaussian_model::{GaussianModel, MAX_MEAN, MEAN_DENOMINATOR, SCALE_OFFSET};
+use crate::anchor::Mlp;
+use crate::context_grid::{ContextGridShape, Corner};
+
+pub const CONTEXT: Tag = Tag(*b"ACTX");
+
+/// Limits on the grid and network a stream may declare (SPEC.md section 12.7).
+pub const MAX_LEVELS: usize = 16;
+pub const MAX_LEVEL_LOG2: u8 = 24;
+pub const TABLE_LOG2: std::ops::RangeInclusive<u8> = 4..=22;
+pub const MAX_CHANNELS: u8 = 8;
+pub const MAX_CONTEXT_HIDDEN: usize = 128;
+
+/// Grid signs a stream may hold per byte of its length (SPEC.md section 12.7): bounds a
+/// decoder's work on a grid whose adaptive bits cost almost nothing.
+pub const GRID_BITS_PER_BYTE: u64 = 64;
+
+/// A context model as the stream holds it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuantizedContext {
+    pub shape: ContextGridShape,
+    /// The grid's entries, entry-major (`channels` per entry), true for +1.
+    pub signs: Vec<bool>,
+    /// Inputs: levels x channels; outputs: 2 V, V = F + 6 + 3K (means, then log2 scales).
+    pub mlp: QuantizedMlp,
+}
+
+/// Values an anchor's network predicts: F features, 6 scaling values, 3K offsets.
+pub fn predicted_values(feature_dim: usize, offsets: usize) -> usize {
+    feature_dim + 6 + 3 * offsets
+}
+
+/// The quantized-Gaussian model of a value from the network's outputs for its mean `u` (in
+/// quantization units) and its log2 scale `s` (in units): `M = floor(64 u + 1/2)` and `J =
+/// floor(8 s + 1/2) + 96`, each clamped to its range (binary64, exact up to the rounding).
+pub fn snap(u: f32, s: f32) -> GaussianModel {
+    let limit = f64::from(MAX_MEAN);
+    let mean = (f64::from(u) * f64::from(MEAN_DENOMINATOR) + 0.5).floor();
+    let scale = (f64::from(s) * 8.0 + 0.5).floor() + f64::from(SCALE_OFFSET);
+    // A NaN (impossible from finite weights, but free to rule out) snaps to 0 and the
+    // smallest scale.
+    let mean = if mean.is_nan() { 0.0 } else { mean.clamp(-limit, limit) };
+    let scale = if scale.is_nan() { 0.0 } else { scale.clamp(0.0, 255.0) };
+    GaussianModel { mean: mean as i32, scale: scale as u8 }
+}
+
+/// Per anchor, the models of its values, and their tables (built once per fractional mean and
+/// scale: a table moves with the integer part of its mean).
+pub struct AnchorModels<'a> {
+    context: &'a QuantizedContext,
+    mlp: Mlp,
+    depth: u8,
+    feature_dim: usize,
+    offsets: usize,
+    values: usize,
+    corners: Vec<Corner>,
+    hidden: Vec<f32>,
+    out: Vec<f32>,
+    tables: HashMap<(i32, u8), FrequencyTable>,
+}
+
+impl<'a> AnchorModels<'a> {
+    /// The models of anchors of `feature_dim` features and `offsets` offsets on an octree of
+    /// `depth` levels.
+    pub fn new(context: &'a QuantizedContext, depth: u8, feature_dim: usize, offsets: usize) -> Self {
+        let values = predicted_values(feature_dim, offsets);
+        let mlp = context.mlp.dequantize(context.shape.context_len(), 2 * values);
+        Self {
+            context,
+            hidden: vec![0.0; mlp.hidden],
+            out: vec![0.0; 2 * values],
+            mlp,
+            depth,
+            feature_dim,
+            offsets,
+            values,
+            corners: Vec::new(),
+            tables: HashMap::new(),
+        }
+    }
+
+    /// Evaluates the network for the anchor at octree coordinates `q`.
+    pub fn evaluate(&mut self, q: [u32; 3]) {
+        self.corners.clear();
+        self.context.shape.corners(q, self.depth, &mut self.corners);
+        let input = self.context.shape.context(&self.corners, &self.context.signs);
+        self.mlp.forward(&input, &mut self.hidden, &mut self.out);
+    }
+
+    /// The model of value `t` (features, then scaling, then offsets 3j + a) of the anchor last
+    /// evaluated.
+    pub fn model(&self, t: usize) -> GaussianModel {
+        snap(self.out[t], self.out[self.values + t])
+    }
+
+    /// The table of value `t` and how far it moves.
+    fn table(&mut self, t: usize) -> (&FrequencyTable, i32) {
+        let model = self.model(t);
+        let (whole, fraction) = (model.mean.div_euclid(MEAN_DENOMINATOR), model.mean.rem_euclid(MEAN_DENOMINATOR));
+        let table = self
+            .tables
+            .entry((fraction, model.scale))
+            .or_insert_with(|| GaussianModel { mean: fraction, scale: model.scale }.table());
+        (table, whole)
+    }
+
+    pub fn encode(&mut self, coder: &mut SymbolEncoder, t: usize, value: i32) {
+        let (table, shift) = self.table(t);
+        coder.shifted_value(table, shift, value);
+    }
+
+    pub fn decode(&mut self, coder: &mut SymbolDecoder, t: usize) -> Result<i32, super::entropy::EntropyError> {
+        let (table, shift) = self.table(t);
+        coder.shifted_value(table, shift)
+    }
+}
+
+impl QuantizedContext {
+    /// `ACTX`'s payload for anchors of `values` predicted values on an octree of `depth`.
+    pub fn write(&self, depth: u8) -> Vec<u8> {
+        let mut w = FieldWriter::new();
+        w.varint(self.shape.levels.len() as u32);
+        self.shape.levels.iter().for_each(|&r| w.u8(r));
+        w.u8(self.shape.table_log2);
+        w.varint(u32::from(self.shape.channels));
+        let m = &self.mlp;
+        w.varint(m.hidden as u32);
+        w.u8(m.weight_exponent as u8);
+        w.u8(m.bias_exponent as u8);
+        let tensors = [&m.w1, &m.b1, &m.w2, &m.b2];
+        let models: Vec<GaussianModel> = tensors.iter().map(|t| GaussianModel::fit(t)).collect();
+        models.iter().for_each(|g| g.write(&mut w));
+        let mut coder = SymbolEncoder::new();
+        let c = usize::from(self.shape.channels);
+        let mut contexts = vec![BitContext::default(); c];
+        debug_assert_eq!(self.signs.len(), self.shape.entries(depth) as usize * c);
+        for (i, &sign) in self.signs.iter().enumerate() {
+            coder.bit(&mut contexts[i % c], sign);
+        }
+        for (values, model) in tensors.iter().zip(&models) {
+            let table = model.table();
+            values.iter().for_each(|&v| coder.value(&table, v));
+        }
+        w.extend(&coder.finish());
+        w.into_bytes()
+    }
+
+    /// Reads `ACTX` for anchors of `values` predicted values on an octree of `depth`, in a
+    /// stream of `stream_len` bytes (the grid may hold at most 64 entries per byte of it).
+    pub fn read(payload: &[u8], depth: u8, values: usize, stream_len: usize) -> Result<Self, DecodeError> {
+        let mut r = FieldReader::new("ACTX", payload);
+        let levels = bounded(&mut r, "levels", MAX_LEVELS)?;
+        let levels = (0..levels).map(|_| level(&mut r)).collect::<Result<Vec<u8>, FieldError>>()?;
+        let table_log2 = r.u8("table log2")?;
+        if !TABLE_LOG2.contains(&table_log2) {
+            return Err(r.error("table log2", format!("{table_log2} is outside {TABLE_LOG2:?}")).into());
+        }
+        let channels = bounded(&mut r, "channels", usize::from(MAX_CHANNELS))? as u8;
+        let shape = ContextGridShape { levels, table_log2, channels };
+        let bits = u64::from(shape.entries(depth)) * u64::from(channels);
+        if bits > GRID_BITS_PER_BYTE * stream_len as u64 {
+            return Err(DecodeError::invalid(
+                CONTEXT,
+                format!(
+                    "a grid of {bits} bits exceeds the stream's length of {stream_len} bytes (at most 64 per byte)"
+                ),
+            ));
+        }
+        let hidden = bounded(&mut r, "hidden width", MAX_CONTEXT_HIDDEN)?;
+        let (weight_exponent, bias_exponent) =
+            (exponent(&mut r, "weight step exponent")?, exponent(&mut r, "bias step exponent")?);
+        let inputs = shape.context_len();
+        let sizes = [hidden * inputs, hidden, 2 * values * hidden, 2 * values];
+        let tables =
+            (0..4).map(|_| GaussianModel::read(&mut r).map(GaussianModel::table)).collect::<Result<Vec<_>, _>>()?;
+        let coded = |e| DecodeError::coded(CONTEXT, e);
+        let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
+        let c = usize::from(channels);
+        let mut contexts = vec![BitContext::default(); c];
+        let signs = (0..bits as usize)
+            .map(|i| coder.bit(&mut contexts[i % c]))
+            .collect::<Result<Vec<bool>, _>>()
+            .map_err(coded)?;
+        let mut tensors = Vec::with_capacity(4);
+        for (&size, table) in sizes.iter().zip(&tables) {
+            tensors.push((0..size).map(|_| coder.value(table)).collect::<Result<Vec<i32>, _>>().map_err(coded)?);
+        }
+        coder.finish().map_err(coded)?;
+        let [w1, b1, w2, b2]: [Vec<i32>; 4] = tensors.try_into().expect("four tensors");
+        Ok(Self { shape, signs, mlp: QuantizedMlp { hidden, weight_exponent, bias_exponent, w1, b1, w2, b2 } })
+    }
+}
+
+/// A level's resolution log2, 1 to [`MAX_LEVEL_LOG2`].
+fn level(r: &mut FieldReader) -> Result<u8, FieldError> {
+    let v = r.u8("level")?;
+    match (1..=MAX_LEVEL_LOG2).contains(&v) {
+        true => Ok(v),
+        false => Err(r.error("level", format!("{v} is outside 1..={MAX_LEVEL_LOG2}"))),
+    }
+}
+
+/// What `AFEA`, `ASCL` and `AOFF` hold once decoded with a context model.
+pub(super) struct ContextBlocks {
+    /// Steps of features, scaling and offsets.
+    pub steps: [f32; 3],
+    /// N x F.
+    pub features: Vec<i32>,
+    /// N x 6.
+    pub scaling: Vec<i32>,
+    /// N x 3K, 0 where masked.
+    pub offsets: Vec<i32>,
+}
+
+/// The three sections with a context model.
+pub(super) const BLOCKS: [Tag; 3] = [super::anchor::FEATURES, super::anchor::SCALING, super::anchor::OFFSETS];
+
+/// Writes the three sections: each its step, then one chunk; anchor by anchor (in `order`),
+/// its features into `AFEA`, its scaling into `ASCL`, the offsets of its open masks into
+/// `AOFF`, each value with its model.
+pub(super) fn write_blocks(
+    models: &mut AnchorModels,
+    order: &[usize],
+    positions: &[[u32; 3]],
+    blocks: &ContextBlocks,
+    masks: &[bool],
+) -> [Vec<u8>; 3] {
+    let (f, k) = (models.feature_dim, models.offsets);
+    let mut coders = [SymbolEncoder::new(), SymbolEncoder::new(), SymbolEncoder::new()];
+    for &i in order {
+        models.evaluate(positions[i]);
+        for c in 0..f {
+            models.encode(&mut coders[0], c, blocks.features[i * f + c]);
+        }
+        for c in 0..6 {
+            models.encode(&mut coders[1], f + c, blocks.scaling[i * 6 + c]);
+        }
+        for j in (0..k).filter(|&j| masks[i * k + j]) {
+            for a in 0..3 {
+                models.encode(&mut coders[2], f + 6 + 3 * j + a, blocks.offsets[(i * k + j) * 3 + a]);
+            }
+        }
+    }
+    let mut out = coders.map(|coder| coder.finish());
+    for (bytes, step) in out.iter_mut().zip(blocks.steps) {
+        let mut w = FieldWriter::new();
+        w.f32(step);
+        w.extend(bytes);
+        *bytes = w.into_bytes();
+    }
+    out
+}
+
+/// Reads the three sections (as [`write_blocks`] writes them) for anchors at `positions` in
+/// stream order, with masks N x K.
+pub(super) fn read_blocks(
+    payloads: [&[u8]; 3],
+    models: &mut AnchorModels,
+    positions: &[[u32; 3]],
+    masks: &[bool],
+) -> Result<ContextBlocks, DecodeError> {
+    let n = positions.len();
+    let (f, k) = (models.feature_dim, models.offsets);
+    let mut steps = [0.0; 3];
+    let mut coders = Vec::with_capacity(3);
+    for (((tag, name), payload), step) in BLOCKS.iter().zip(["AFEA", "ASCL", "AOFF"]).zip(payloads).zip(&mut steps) {
+        let mut r = FieldReader::new(name, payload);
+        *step = super::plain::read_step(&mut r)?;
+        coders.push(SymbolDecoder::new(r.rest()).map_err(|e| DecodeError::coded(*tag, e))?);
+    }
+    let mut blocks = ContextBlocks {
+        steps,
+        features: Vec::with_capacity(n * f),
+        scaling: Vec::with_capacity(n * 6),
+        offsets: vec![0; n * k * 3],
+    };
+    let coded = |b: usize| move |e| DecodeError::coded(BLOCKS[b], e);
+    for (i, &q) in positions.iter().enumerate() {
+        models.evaluate(q);
+        for c in 0..f {
+            blocks.features.push(models.decode(&mut coders[0], c).map_err(coded(0))?);
+        }
+        for c in 0..6 {
+            blocks.scaling.push(models.decode(&mut coders[1], f + c).map_err(coded(1))?);
+        }
+        for j in (0..k).filter(|&j| masks[i * k + j]) {
+            for a in 0..3 {
+                blocks.offsets[(i * k + j) * 3 + a] =
+                    models.decode(&mut coders[2], f + 6 + 3 * j + a).map_err(coded(2))?;
+            }
+        }
+    }
+    for (b, coder) in coders.into_iter().enumerate() {
+        coder.finish().map_err(coded(b))?;
+    }
+    Ok(blocks)
+}
