@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 /// and sections, the noise pyramid, the encoder's quantizer (which decides the bytes), and
 /// what decides the wrapper's quantization steps: the CPU rasterizer's renders of training
 /// views, f's inputs (Plücker embeddings) and f itself, as the encoder evaluates them; and
-/// the anchor base's derivation of each view's Gaussians.
-const NORMATIVE: [&str; 12] = [
+/// the anchor base's derivation of each view's Gaussians and its context grid.
+const NORMATIVE: [&str; 13] = [
     "bitstream-spec/src",
     "decoder/src/stream",
     "decoder/src/wrapper/noise.rs",
@@ -22,6 +22,7 @@ const NORMATIVE: [&str; 12] = [
     "decoder/src/raster",
     "decoder/src/portable_math.rs",
     "decoder/src/anchor.rs",
+    "decoder/src/context_grid.rs",
     "encoder/src/compress.rs",
     "encoder/src/anchor/quantize.rs",
     "encoder/src/synthesis.rs",

@@ -17,6 +17,7 @@ use pwgs_decoder::camera_json::parse_camera;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream;
+use pwgs_decoder::stream::anchor_context::CONTEXT;
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::residual_picture;
@@ -126,6 +127,25 @@ fn info(path: &Path) -> Result<()> {
     let (container, header) =
         stream::parse(&bytes).with_context(|| format!("{} is not a valid stream", path.display()))?;
     print_info(path, &bytes, &container, &header);
+    if container.section(CONTEXT).is_some() {
+        // The grid's size depends on the positions' octree: shown from a full decode.
+        let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
+        if let stream::Content::Anchors(a) = &decoded.content
+            && let Some(c) = &a.context
+        {
+            println!(
+                "context       levels {:?} (2^r cells per axis), 2^{} entries per hashed level, {} channels: {} \
+                 entries; network width {}, steps 2^{} / 2^{}",
+                c.shape.levels,
+                c.shape.table_log2,
+                c.shape.channels,
+                c.shape.entries(a.grid.depth),
+                c.mlp.hidden,
+                c.mlp.weight_exponent,
+                c.mlp.bias_exponent
+            );
+        }
+    }
     if let Some(section) = container.section(WRAPPER) {
         let w = QuantizedSynthesis::read(section.payload, container.minor)
             .with_context(|| format!("{}: bad wrapper section", path.display()))?;

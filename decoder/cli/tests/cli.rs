@@ -77,6 +77,12 @@ fn anchor_streams_hash_show_their_sections_and_export_standard_gaussians() {
     assert!(exported.len() > 100 && exported.len() <= 120 * 4, "{} Gaussians", exported.len());
     let psnr: f64 = stderr.split("PSNR ").nth(1).and_then(|t| t.split(' ').next()).unwrap().parse().unwrap();
     assert!(psnr > 20.0, "the export agrees with the anchor renders to only {psnr} dB: {stderr}");
+    // A stream with a context model describes it.
+    let context = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance/vectors/anchors-context/stream.pwb");
+    let info = stdout(&pwdec(&["info", context.to_str().unwrap()]));
+    for needle in ["'ACTX'", "context       levels [1, 3, 5]", "2 channels: 283 entries; network width 6"] {
+        assert!(info.contains(needle), "`{needle}` missing from:\n{info}");
+    }
 }
 
 #[test]

@@ -14,7 +14,7 @@ use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
 use super::anchor::{QuantizedMlp, bounded, exponent};
-use super::entropy::{BitContext, FrequencyTable, SymbolDecoder, SymbolEncoder};
+use super::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::{GaussianModel, MAX_MEAN, MEAN_DENOMINATOR, SCALE_OFFSET};
 use crate::anchor::Mlp;
 use crate::context_grid::{ContextGridShape, Corner};
@@ -126,14 +126,14 @@ impl<'a> AnchorModels<'a> {
         coder.shifted_value(table, shift, value);
     }
 
-    pub fn decode(&mut self, coder: &mut SymbolDecoder, t: usize) -> Result<i32, super::entropy::EntropyError> {
+    pub fn decode(&mut self, coder: &mut SymbolDecoder, t: usize) -> Result<i32, EntropyError> {
         let (table, shift) = self.table(t);
         coder.shifted_value(table, shift)
     }
 }
 
 impl QuantizedContext {
-    /// `ACTX`'s payload for anchors of `values` predicted values on an octree of `depth`.
+    /// `ACTX`'s payload, for anchors on an octree of `depth` levels.
     pub fn write(&self, depth: u8) -> Vec<u8> {
         let mut w = FieldWriter::new();
         w.varint(self.shape.levels.len() as u32);

@@ -11,6 +11,8 @@ use pwgs_decoder::stream::anchor_context::QuantizedContext;
 use pwgs_decoder::stream::octree::MAX_DEPTH;
 use pwgs_decoder::stream::plain::PositionGrid;
 
+use super::context::CONTEXT_STEP_EXPONENT;
+
 /// Quantization steps of an anchor stream.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AnchorSteps {
@@ -118,10 +120,10 @@ pub struct TrainedContext {
     pub mlp: Mlp,
 }
 
-/// Adds the context model to `content`: the grid's signs and the network's weights at the
-/// MLPs' steps. Entries no stored anchor weighs take the commonest sign of their channel,
+/// Adds the context model to `content`: the grid's signs and the network's weights at
+/// [`CONTEXT_STEP_EXPONENT`]. Entries no stored anchor weighs take the commonest sign of their channel,
 /// which the adaptive coder then codes almost for free.
-pub fn quantize_context(content: &mut QuantizedAnchors, trained: &TrainedContext, steps: &AnchorSteps) {
+pub fn quantize_context(content: &mut QuantizedAnchors, trained: &TrainedContext) {
     let depth = content.grid.depth;
     let c = usize::from(trained.shape.channels);
     let entries = trained.shape.entries(depth) as usize;
@@ -143,7 +145,7 @@ pub fn quantize_context(content: &mut QuantizedAnchors, trained: &TrainedContext
     content.context = Some(QuantizedContext {
         shape: trained.shape.clone(),
         signs,
-        mlp: QuantizedMlp::quantize(&trained.mlp, steps.weight_exponent, steps.bias_exponent),
+        mlp: QuantizedMlp::quantize(&trained.mlp, CONTEXT_STEP_EXPONENT, CONTEXT_STEP_EXPONENT),
     });
 }
 

@@ -174,7 +174,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     }
     let mut content = quantize(&trainer.model(), &grid, &job.steps)?;
     if let Some(trained) = trainer.context_model() {
-        quantize_context(&mut content, &trained, &job.steps);
+        quantize_context(&mut content, &trained);
     }
     let header = Header {
         base: BaseKind::Anchors,
