@@ -49,7 +49,7 @@ pub fn predicted_values(feature_dim: usize, offsets: usize) -> usize {
 
 /// The quantized-Gaussian model of a value from the network's outputs for its mean `u` (in
 /// quantization units) and its log2 scale `s` (in units): `M = floor(64 u + 1/2)` and `J =
-/// floor(8 s + 1/2) + 96`, each clamped to its range (binary64, exact up to the rounding).
+/// floor(8 s + 1/2) + 96`, each clamped to its range (binary64, every operation exact).
 pub fn snap(u: f32, s: f32) -> GaussianModel {
     let limit = f64::from(MAX_MEAN);
     let mean = (f64::from(u) * f64::from(MEAN_DENOMINATOR) + 0.5).floor();
