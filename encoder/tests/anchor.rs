@@ -89,6 +89,10 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     assert_eq!(report["stream"]["bytes"].as_u64(), Some(bytes.len() as u64));
     assert_eq!(report["stream"]["attribute_sha256"].as_str(), Some(decoded.scene.attribute_hash().as_str()));
     assert_eq!(decoded.header.base, stream::header::BaseKind::Anchors);
+    // The context model codes the attributes by default, and its grid's size is reported.
+    let stream::Content::Anchors(content) = &decoded.content else { panic!("an anchor stream") };
+    assert!(content.context.is_some(), "no ACTX section in the default stream");
+    assert!(report["context_grid_bytes"].as_f64().is_some_and(|b| b > 0.0), "{report}");
 
     // --export-ply writes standard Gaussians of SH degree 3; --init-ply is refused before any
     // training, and nothing is written.

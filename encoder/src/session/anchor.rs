@@ -43,7 +43,7 @@ pub struct AnchorJob {
     /// λ of the rate term (from 30% of the iterations on, with learned masks); `None`: no rate
     /// term, every mask open.
     pub lambda: Option<f32>,
-    /// Train and code with the context model (SPEC.md section 12.7).
+    /// Train and code with the context model (SPEC.md section 12.7); needs the rate term.
     pub context: bool,
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
@@ -106,7 +106,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         job.lambda.is_none() || job.quantization_noise,
         "the rate term (--lambda) needs the quantization noise"
     );
-    anyhow::ensure!(!job.context || job.lambda.is_some(), "the context model (--anchor-context) needs the rate term");
+    anyhow::ensure!(!job.context || job.lambda.is_some(), "the context model needs the rate term (--lambda > 0)");
     check_outputs(job.output.iter().chain(&job.report).chain(&job.export_ply), job.eval.iter().map(|e| &e.dir))?;
     let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
     let data =
