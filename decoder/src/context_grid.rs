@@ -95,6 +95,14 @@ impl ContextGridShape {
         }
     }
 
+    /// Which entries of the grid on an octree of `depth` any of `corners` weighs (weight > 0):
+    /// the only ones whose signs affect a context.
+    pub fn used_entries(&self, corners: &[Corner], depth: u8) -> Vec<bool> {
+        let mut used = vec![false; self.entries(depth) as usize];
+        corners.iter().filter(|c| c.weight > 0.0).for_each(|c| used[c.entry as usize] = true);
+        used
+    }
+
     /// An anchor's context from its corners ([`Self::corners`]) and the table (entry-major,
     /// `channels` bits per entry, true for +1): per level and channel, the weighted sum of the
     /// corners' ±1 values in corner order.

@@ -8,7 +8,7 @@ use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
 use super::anchor_context::{
-    AnchorModels, CONTEXT, ContextBlocks, QuantizedContext, predicted_values, read_blocks, write_blocks,
+    AnchorModels, AttributeBlocks, CONTEXT, QuantizedContext, predicted_values, read_blocks, write_blocks,
 };
 use super::entropy::{FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
@@ -174,13 +174,7 @@ impl QuantizedAnchors {
             ]);
         };
         let mut models = AnchorModels::new(context, self.grid.depth, f, k);
-        let blocks = ContextBlocks {
-            steps: [self.feature_step, self.scaling_step, self.offset_step],
-            features: self.features.clone(),
-            scaling: self.scaling.iter().flatten().copied().collect(),
-            offsets: self.offsets.clone(),
-        };
-        let [features, scaling, offsets] = write_blocks(&mut models, &order, &self.positions, &blocks, &self.masks);
+        let [features, scaling, offsets] = write_blocks(&mut models, self, &order);
         Ok(vec![
             (NETWORKS, self.write_networks()),
             (ANCHOR_POSITIONS, positions),
@@ -248,58 +242,55 @@ impl QuantizedAnchors {
             ));
         }
         let (grid, positions) = read_positions(ANCHOR_POSITIONS, positions, count)?;
-        if let Some(section) = container.section(CONTEXT) {
-            let values = predicted_values(feature_dim, k);
-            let context = QuantizedContext::read(section.payload, grid.depth, values, stream_len)?;
+        let read_masks = || -> Result<Vec<bool>, DecodeError> {
             let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), count)?;
-            let masks: Vec<bool> = masks.into_iter().map(|m| m == 1).collect();
-            let mut models = AnchorModels::new(&context, grid.depth, feature_dim, k);
-            let blocks = read_blocks([features, scaling, offsets], &mut models, &positions, &masks)?;
-            let [feature_step, scaling_step, offset_step] = blocks.steps;
-            return Ok(Self {
-                grid,
-                positions,
-                feature_dim,
-                offsets_per_anchor: k,
-                feature_step,
-                features: blocks.features,
-                scaling_step,
-                scaling: blocks.scaling.chunks_exact(6).map(|c| std::array::from_fn(|i| c[i])).collect(),
-                offset_step,
-                offsets: blocks.offsets,
-                masks,
-                mlps,
-                context: Some(context),
-            });
-        }
-        let any: ValueCheck = |_, _| Ok(());
-        let gaussians = |channels| (Models::Gaussians, 1, channels, any);
-        let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), count)?;
-        let (scaling_steps, scaling) = read_block(SCALING, scaling, gaussians(6), count)?;
-        let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), count)?;
-        let masks: Vec<bool> = masks.into_iter().map(|m| m == 1).collect();
-        let open = masks.iter().filter(|&&m| m).count();
-        let (offset_steps, open_offsets) = read_block(OFFSETS, offsets, gaussians(3), open)?;
-        // Masked neural Gaussians have no offsets in the stream: they are 0.
-        let mut offsets = vec![0; count * k * 3];
-        let mut coded = open_offsets.chunks_exact(3);
-        for (r, _) in masks.iter().enumerate().filter(|(_, m)| **m) {
-            offsets[r * 3..r * 3 + 3].copy_from_slice(coded.next().expect("one triple per open mask"));
-        }
+            Ok(masks.into_iter().map(|m| m == 1).collect())
+        };
+        let (context, masks, blocks) = match container.section(CONTEXT) {
+            // With ACTX: the masks first, then the three blocks together (SPEC.md 12.7).
+            Some(section) => {
+                let values = predicted_values(feature_dim, k);
+                let context = QuantizedContext::read(section.payload, grid.depth, values, stream_len)?;
+                let masks = read_masks()?;
+                let blocks = {
+                    let mut models = AnchorModels::new(&context, grid.depth, feature_dim, k);
+                    read_blocks([features, scaling, offsets], &mut models, &positions, &masks)?
+                };
+                (Some(context), masks, blocks)
+            }
+            None => {
+                let any: ValueCheck = |_, _| Ok(());
+                let gaussians = |channels| (Models::Gaussians, 1, channels, any);
+                let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), count)?;
+                let (scaling_steps, scaling) = read_block(SCALING, scaling, gaussians(6), count)?;
+                let masks = read_masks()?;
+                let open = masks.iter().filter(|&&m| m).count();
+                let (offset_steps, open_offsets) = read_block(OFFSETS, offsets, gaussians(3), open)?;
+                // Masked neural Gaussians have no offsets in the stream: they are 0.
+                let mut offsets = vec![0; count * k * 3];
+                let mut coded = open_offsets.chunks_exact(3);
+                for (r, _) in masks.iter().enumerate().filter(|(_, m)| **m) {
+                    offsets[r * 3..r * 3 + 3].copy_from_slice(coded.next().expect("one triple per open mask"));
+                }
+                let steps = [feature_steps[0], scaling_steps[0], offset_steps[0]];
+                (None, masks, AttributeBlocks { steps, features, scaling, offsets })
+            }
+        };
+        let [feature_step, scaling_step, offset_step] = blocks.steps;
         Ok(Self {
             grid,
             positions,
             feature_dim,
             offsets_per_anchor: k,
-            feature_step: feature_steps[0],
-            features,
-            scaling_step: scaling_steps[0],
-            scaling: scaling.chunks_exact(6).map(|c| std::array::from_fn(|i| c[i])).collect(),
-            offset_step: offset_steps[0],
-            offsets,
+            feature_step,
+            features: blocks.features,
+            scaling_step,
+            scaling: blocks.scaling.chunks_exact(6).map(|c| std::array::from_fn(|i| c[i])).collect(),
+            offset_step,
+            offsets: blocks.offsets,
             masks,
             mlps,
-            context: None,
+            context,
         })
     }
 }

@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
-use super::anchor::{QuantizedMlp, bounded, exponent};
+use super::anchor::{QuantizedAnchors, QuantizedMlp, bounded, exponent};
 use super::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::{GaussianModel, MAX_MEAN, MEAN_DENOMINATOR, SCALE_OFFSET};
 use crate::anchor::Mlp;
@@ -217,8 +217,8 @@ fn level(r: &mut FieldReader) -> Result<u8, FieldError> {
     }
 }
 
-/// What `AFEA`, `ASCL` and `AOFF` hold once decoded with a context model.
-pub(super) struct ContextBlocks {
+/// What `AFEA`, `ASCL` and `AOFF` hold once decoded, with or without a context model.
+pub(super) struct AttributeBlocks {
     /// Steps of features, scaling and offsets.
     pub steps: [f32; 3],
     /// N x F.
@@ -235,31 +235,26 @@ pub(super) const BLOCKS: [Tag; 3] = [super::anchor::FEATURES, super::anchor::SCA
 /// Writes the three sections: each its step, then one chunk; anchor by anchor (in `order`),
 /// its features into `AFEA`, its scaling into `ASCL`, the offsets of its open masks into
 /// `AOFF`, each value with its model.
-pub(super) fn write_blocks(
-    models: &mut AnchorModels,
-    order: &[usize],
-    positions: &[[u32; 3]],
-    blocks: &ContextBlocks,
-    masks: &[bool],
-) -> [Vec<u8>; 3] {
+pub(super) fn write_blocks(models: &mut AnchorModels, anchors: &QuantizedAnchors, order: &[usize]) -> [Vec<u8>; 3] {
     let (f, k) = (models.feature_dim, models.offsets);
     let mut coders = [SymbolEncoder::new(), SymbolEncoder::new(), SymbolEncoder::new()];
     for &i in order {
-        models.evaluate(positions[i]);
+        models.evaluate(anchors.positions[i]);
         for c in 0..f {
-            models.encode(&mut coders[0], c, blocks.features[i * f + c]);
+            models.encode(&mut coders[0], c, anchors.features[i * f + c]);
         }
         for c in 0..6 {
-            models.encode(&mut coders[1], f + c, blocks.scaling[i * 6 + c]);
+            models.encode(&mut coders[1], f + c, anchors.scaling[i][c]);
         }
-        for j in (0..k).filter(|&j| masks[i * k + j]) {
+        for j in (0..k).filter(|&j| anchors.masks[i * k + j]) {
             for a in 0..3 {
-                models.encode(&mut coders[2], f + 6 + 3 * j + a, blocks.offsets[(i * k + j) * 3 + a]);
+                models.encode(&mut coders[2], f + 6 + 3 * j + a, anchors.offsets[(i * k + j) * 3 + a]);
             }
         }
     }
     let mut out = coders.map(|coder| coder.finish());
-    for (bytes, step) in out.iter_mut().zip(blocks.steps) {
+    let steps = [anchors.feature_step, anchors.scaling_step, anchors.offset_step];
+    for (bytes, step) in out.iter_mut().zip(steps) {
         let mut w = FieldWriter::new();
         w.f32(step);
         w.extend(bytes);
@@ -275,7 +270,7 @@ pub(super) fn read_blocks(
     models: &mut AnchorModels,
     positions: &[[u32; 3]],
     masks: &[bool],
-) -> Result<ContextBlocks, DecodeError> {
+) -> Result<AttributeBlocks, DecodeError> {
     let n = positions.len();
     let (f, k) = (models.feature_dim, models.offsets);
     let mut steps = [0.0; 3];
@@ -285,7 +280,7 @@ pub(super) fn read_blocks(
         *step = super::plain::read_step(&mut r)?;
         coders.push(SymbolDecoder::new(r.rest()).map_err(|e| DecodeError::coded(*tag, e))?);
     }
-    let mut blocks = ContextBlocks {
+    let mut blocks = AttributeBlocks {
         steps,
         features: Vec::with_capacity(n * f),
         scaling: Vec::with_capacity(n * 6),

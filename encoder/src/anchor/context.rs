@@ -48,10 +48,7 @@ impl ContextLookup {
             shape.corners(q, depth, &mut corners);
         }
         let len = corners.len();
-        let mut used = vec![false; shape.entries(depth) as usize];
-        for c in corners.iter().filter(|c| c.weight > 0.0) {
-            used[c.entry as usize] = true;
-        }
+        let used = shape.used_entries(&corners, depth);
         let entries: Vec<i64> = corners.iter().map(|c| i64::from(c.entry)).collect();
         let weights: Vec<f32> = corners.iter().map(|c| c.weight).collect();
         Self {

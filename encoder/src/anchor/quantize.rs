@@ -121,19 +121,17 @@ pub struct TrainedContext {
 }
 
 /// Adds the context model to `content`: the grid's signs and the network's weights at
-/// [`CONTEXT_STEP_EXPONENT`]. Entries no stored anchor weighs take the commonest sign of their channel,
-/// which the adaptive coder then codes almost for free.
+/// [`CONTEXT_STEP_EXPONENT`]. Entries no stored anchor weighs take the commonest sign of their
+/// channel, which the adaptive coder then codes almost for free.
 pub fn quantize_context(content: &mut QuantizedAnchors, trained: &TrainedContext) {
     let depth = content.grid.depth;
     let c = usize::from(trained.shape.channels);
     let entries = trained.shape.entries(depth) as usize;
-    let mut used = vec![false; entries];
     let mut corners = Vec::new();
     for &q in &content.positions {
-        corners.clear();
         trained.shape.corners(q, depth, &mut corners);
-        corners.iter().filter(|k| k.weight > 0.0).for_each(|k| used[k.entry as usize] = true);
     }
+    let used = trained.shape.used_entries(&corners, depth);
     let sign = |e: usize, ch: usize| trained.grid[e * c + ch] >= 0.0;
     let common: Vec<bool> = (0..c)
         .map(|ch| {

@@ -32,6 +32,7 @@ use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::SH_C0;
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::stream::anchor_context::predicted_values;
 
 use super::context::ContextLookup;
 use super::quantize::{AnchorSteps, TrainedContext};
@@ -247,7 +248,7 @@ impl AnchorTrainer {
     /// this model's anchors, in its order) instead of the factorized model.
     pub fn with_context(mut self, lookup: ContextLookup) -> Self {
         let [_, f, k] = self.shape;
-        let outputs = 2 * (f + 6 + 3 * k);
+        let outputs = 2 * predicted_values(f, k);
         let device = self.positions.device();
         for p in lookup.initial_parameters(outputs, &mut self.rng, &device) {
             self.moments.push((p.zeros_like(), p.zeros_like()));
@@ -459,7 +460,7 @@ impl AnchorTrainer {
         let [n, f, k] = self.shape;
         let (steps, _) = self.noise.expect("the rate needs the quantization steps");
         let (widths, group_steps) = ([f, 6, 3 * k], [steps.feature, steps.scaling, steps.offset]);
-        let values = f + 6 + 3 * k;
+        let values = predicted_values(f, k);
         let context = self.context.as_ref().map(|lookup| lookup.outputs(&tracked[PARAMETERS..]));
         // Mean and log scale of group j: per anchor from the context model (whose outputs are,
         // per value, the mean in steps, then log2 of the scale in steps: SPEC.md section 12.7),
@@ -486,7 +487,7 @@ impl AnchorTrainer {
         };
         let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
         let total = ((features + scaling) * anchor_open + offsets).sum();
-        total / (n * (f + 6 + 3 * k)) as f32
+        total / self.rated_values() as f32
     }
 
     pub fn device(&self) -> Device {
@@ -496,7 +497,7 @@ impl AnchorTrainer {
     /// Values the rate term's mean is taken over: N x (F + 6 + 3K).
     pub fn rated_values(&self) -> usize {
         let [n, f, k] = self.shape;
-        n * (f + 6 + 3 * k)
+        n * predicted_values(f, k)
     }
 
     /// The current model, as a decoder holds it.
