@@ -237,6 +237,10 @@ struct WrapperArgs {
     /// Adam learning rate of f (5e-3 beat 2e-3 together with log2σ 4 on fern).
     #[arg(long, default_value_t = 5e-3, requires = "wrapper")]
     wrapper_lr: f32,
+    /// Multiplies the base's (the Gaussians' or the anchors') learning rates in stage 2 (1: as
+    /// in stage 1; 0 freezes the base and trains f alone).
+    #[arg(long, default_value_t = 1.0, requires = "wrapper", value_parser = parse_weight)]
+    wrapper_base_lr_scale: f32,
     /// log2 of WD's pooling width σ in pixels, the same everywhere (0 to 5; 4 gave a lower
     /// DISTS than 3 on fern).
     #[arg(long, default_value_t = 4.0, requires = "wrapper")]
@@ -322,6 +326,7 @@ impl WrapperArgs {
             log2_sigma,
             crop: self.wd_crop,
             learning_rate: self.wrapper_lr,
+            base_lr_scale: self.wrapper_base_lr_scale,
             features,
             pixel_weight: self.wd_pixel_weight,
         }))

@@ -96,30 +96,40 @@ fn training_resumes_from_an_exported_ply() {
 
 /// Stage 2's pixel term adds the base's own objective on the crop of the base render to WD:
 /// the same first step with and without it differs by a loss in (0, 1].
-#[test]
-fn the_stage_two_pixel_term_adds_the_base_objective() {
+/// Pixel-feature stage-2 settings from the first iteration on, for the tests.
+fn stage_two_settings(pixel_weight: f32, base_lr_scale: f32) -> pwgs_encoder::train::WrapperTraining {
     use pwgs_decoder::wrapper::synthesis::WrapperConfig;
     use pwgs_encoder::metrics::sigma_map::Log2Sigma;
     use pwgs_encoder::train::{WdFeatures, WrapperTraining};
+    WrapperTraining {
+        config: WrapperConfig { width: 4, noise: true, plucker: false, seed: 3 },
+        start: 0,
+        log2_sigma: Log2Sigma::Constant(2.0),
+        crop: 64,
+        learning_rate: 0.01,
+        base_lr_scale,
+        features: WdFeatures::Pixels,
+        pixel_weight,
+        crops_per_view: 1,
+        min_steps: 0,
+        cache_bytes: usize::MAX,
+    }
+}
+
+/// A scene whose views are large enough for WD (at least 61 x 61 pixels).
+fn wd_scene(dir: &std::path::Path) -> Dataset {
+    generate(dir, &SyntheticOptions { width: 72, height: 64, views: 6, seed: 4, points: 800 }).unwrap();
+    load_scene(dir, &LoadOptions::default()).unwrap()
+}
+
+#[test]
+fn the_stage_two_pixel_term_adds_the_base_objective() {
     let tmp = tempfile::tempdir().unwrap();
-    // WD needs views of at least 61 x 61 pixels.
-    generate(tmp.path(), &SyntheticOptions { width: 72, height: 64, views: 6, seed: 4, points: 800 }).unwrap();
-    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
+    let data = wd_scene(tmp.path());
     let initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
     let first_loss = |pixel_weight: f32| {
         let mut config = TrainConfig::for_iterations(1);
-        config.wrapper = Some(WrapperTraining {
-            config: WrapperConfig { width: 4, noise: true, plucker: false, seed: 3 },
-            start: 0,
-            log2_sigma: Log2Sigma::Constant(2.0),
-            crop: 64,
-            learning_rate: 0.01,
-            features: WdFeatures::Pixels,
-            pixel_weight,
-            crops_per_view: 1,
-            min_steps: 0,
-            cache_bytes: usize::MAX,
-        });
+        config.wrapper = Some(stage_two_settings(pixel_weight, 1.0));
         let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();
         trainer.step().unwrap().loss
     };
@@ -127,4 +137,25 @@ fn the_stage_two_pixel_term_adds_the_base_objective() {
     assert!(both > wd && both - wd <= 1.0, "WD {wd}, WD + pixel term {both}");
     let doubled = first_loss(2.0) - wd;
     assert!((doubled - 2.0 * (both - wd)).abs() < 1e-5, "the term scales with its weight: {doubled}");
+}
+
+#[test]
+fn a_zero_base_rate_freezes_the_gaussians_in_stage_two() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = wd_scene(tmp.path());
+    let initial = initial_gaussians(&data, 0, usize::MAX).unwrap();
+    let moved = |base_lr_scale: f32| {
+        let mut config = TrainConfig::for_iterations(2);
+        config.wrapper = Some(stage_two_settings(0.0, base_lr_scale));
+        config.densify_until = 0;
+        config.sh_interval = 100;
+        let mut trainer = Trainer::new(config, &data, &initial, Device::flex()).unwrap();
+        let before = trainer.gaussians();
+        trainer.step().unwrap();
+        trainer.step().unwrap();
+        assert!(trainer.synthesis().is_some(), "stage 2 ran");
+        trainer.gaussians() != before
+    };
+    assert!(!moved(0.0), "scale 0 keeps every Gaussian as it was");
+    assert!(moved(1.0), "scale 1 trains them");
 }

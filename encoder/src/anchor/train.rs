@@ -328,7 +328,8 @@ impl AnchorTrainer {
         Some(host_tensor(&values, shape, &self.positions.device()))
     }
 
-    /// The learning rate of parameter `i` at the current iteration.
+    /// The learning rate of parameter `i` at the current iteration (in stage 2, times the
+    /// wrapper's `base_lr_scale`).
     fn rate(&self, i: usize) -> f32 {
         let group = match i {
             0..3 => i,
@@ -338,7 +339,8 @@ impl AnchorTrainer {
         };
         let [start, end] = RATES[group];
         let t = self.iteration as f32 / self.iterations.max(1) as f32;
-        let rate = (start.ln() * (1.0 - t) + end.ln() * t).exp();
+        let stage_two = self.wrapper.as_ref().map_or(1.0, WrapperStage::base_lr_scale);
+        let rate = (start.ln() * (1.0 - t) + end.ln() * t).exp() * stage_two;
         if group == 2 { rate * self.extent } else { rate }
     }
 

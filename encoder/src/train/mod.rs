@@ -94,17 +94,23 @@ impl TrainConfig {
         }
     }
 
+    /// The Gaussians' rates at an iteration: the 3DGS schedule, times the wrapper's
+    /// `base_lr_scale` in stage 2.
     fn learning_rates(&self, iteration: u32, extent: f32) -> LearningRates {
         let t = iteration as f32 / self.iterations.max(1) as f32;
         let [start, end] = self.lr_position;
         let position = (start.ln() * (1.0 - t) + end.ln() * t).exp() * extent;
+        let scale = match &self.wrapper {
+            Some(w) if iteration >= w.start => w.base_lr_scale,
+            _ => 1.0,
+        };
         LearningRates {
-            means: position,
-            log_scales: self.lr_log_scales,
-            rotations: self.lr_rotations,
-            opacity_logits: self.lr_opacity,
-            sh_dc: self.lr_sh_dc,
-            sh_rest: self.lr_sh_rest,
+            means: position * scale,
+            log_scales: self.lr_log_scales * scale,
+            rotations: self.lr_rotations * scale,
+            opacity_logits: self.lr_opacity * scale,
+            sh_dc: self.lr_sh_dc * scale,
+            sh_rest: self.lr_sh_rest * scale,
         }
     }
 

@@ -62,6 +62,9 @@ pub struct WrapperTraining {
     /// Side of the square crops WD scores (clamped to the image).
     pub crop: usize,
     pub learning_rate: f32,
+    /// Multiplies the base's learning rates during stage 2 (1: as in stage 1; 0 freezes the
+    /// base, so that only f learns).
+    pub base_lr_scale: f32,
     pub features: WdFeatures,
     /// Weight of the base's own objective (L1 + SSIM) on the crop of the base render I_base,
     /// added to WD: it keeps the Gaussians faithful to the pixels while f synthesizes texture
@@ -282,6 +285,11 @@ impl WrapperStage {
         self.settings.pixel_weight
     }
 
+    /// What the base's learning rates are multiplied by while the stage runs.
+    pub fn base_lr_scale(&self) -> f32 {
+        self.settings.base_lr_scale
+    }
+
     /// f's current weights.
     pub fn weights(&self) -> SynthesisWeights {
         host_weights(self.settings.config, self.flat.clone())
@@ -317,6 +325,7 @@ mod tests {
             log2_sigma: Log2Sigma::Constant(2.0),
             crop: 64,
             learning_rate: 0.01,
+            base_lr_scale: 1.0,
             features: WdFeatures::Pixels,
             pixel_weight: 0.0,
             cache_bytes: 0,
