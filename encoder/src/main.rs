@@ -153,6 +153,14 @@ struct EncodeArgs {
     /// which on fern gave streams 8-10% smaller at equal or higher PSNR.
     #[arg(long)]
     no_anchor_context: bool,
+    /// With --base anchor: grow anchors where neural Gaussians keep large screen gradients and
+    /// prune those that stay transparent, over the first half of the iterations (Scaffold-GS's
+    /// anchor densification).
+    #[arg(long)]
+    anchor_growth: bool,
+    /// With --anchor-growth: growing stops at this many anchors (default: twice the initial).
+    #[arg(long, requires = "anchor_growth")]
+    max_anchors: Option<usize>,
     /// Training iterations (0: evaluate the initialization).
     #[arg(long, default_value_t = 3000)]
     iters: u32,
@@ -419,6 +427,8 @@ impl EncodeArgs {
             quantization_noise: !self.no_quantization_noise,
             lambda: (self.lambda > 0.0).then_some(self.lambda),
             context: !self.no_anchor_context && self.lambda > 0.0,
+            growth: self.anchor_growth,
+            max_anchors: self.max_anchors,
             wrapper: self.wrapper.training(self.iters, self.seed, self.weight_dirs())?,
             export_ply: self.export_ply.clone(),
             output: self.output.clone(),

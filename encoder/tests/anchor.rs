@@ -7,8 +7,10 @@ use pwgs_dataset::{LoadOptions, load_scene};
 use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream;
+use pwgs_encoder::anchor::context::{ContextLookup, default_shape};
+use pwgs_encoder::anchor::growth::GrowthSchedule;
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
-use pwgs_encoder::anchor::quantize::{AnchorSteps, quantize};
+use pwgs_encoder::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use pwgs_encoder::anchor::train::AnchorTrainer;
 use pwgs_encoder::evaluate::{MeanScore, evaluate};
 
@@ -55,6 +57,63 @@ fn anchors_learn_the_generated_scene() {
     eprintln!("as the stream rounds it: {quantized:.2} dB");
     assert!(quantized > after - 0.3, "rounding cost {:.2} dB", after - quantized);
     assert_ne!(rounded, trained, "the steps round something");
+}
+
+/// Anchors grown and pruned during training (with the rate term and the context model) stay on
+/// the stream's grid, one per voxel, and their stream decodes to what was trained.
+#[test]
+fn grown_anchors_train_and_code() {
+    let tmp = tempfile::tempdir().unwrap();
+    let options = SyntheticOptions { width: 80, height: 60, views: 16, seed: 4, points: 1500 };
+    generate(tmp.path(), &options).unwrap();
+    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
+    let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel: 0.05 * data.normalization.scale };
+    let (initial, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    let coords = grid_coordinates(&initial.positions, &grid).unwrap();
+    let steps = AnchorSteps::default();
+    let schedule = GrowthSchedule { from: 50, until: 150, every: 50, max_anchors: 2 * initial.len() };
+    let trainer = AnchorTrainer::new(&initial, &data, 200, [0.0; 3], 0).unwrap();
+    let lookup = ContextLookup::new(default_shape(), &coords, grid.depth, &trainer.device());
+    let mut trainer = trainer
+        .with_quantization_noise(steps, 20)
+        .with_rate(0.002, 60)
+        .with_context(lookup)
+        .with_growth(schedule, grid, coords);
+    while trainer.iteration < trainer.iterations {
+        trainer.step().unwrap();
+    }
+    let totals = trainer.growth_totals().unwrap();
+    let trained = trainer.model();
+    eprintln!("{} anchors -> {} ({totals:?})", initial.len(), trained.len());
+    assert!(totals.grown > 0, "nothing grew");
+    assert!(trained.is_consistent());
+    assert_eq!(trained.len(), initial.len() + totals.grown - totals.pruned);
+    assert!(trained.len() <= schedule.max_anchors);
+    let voxels = grid_coordinates(&trained.positions, &grid).expect("every anchor on the grid");
+    let distinct: std::collections::HashSet<_> = voxels.iter().collect();
+    assert_eq!(distinct.len(), voxels.len(), "one anchor per voxel");
+    let mut content = quantize(&trained, &grid, &steps).unwrap();
+    quantize_context(&mut content, &trainer.context_model().unwrap());
+    let header = stream::header::Header {
+        base: stream::header::BaseKind::Anchors,
+        gaussian_count: content.len() as u32,
+        sh_degree: 0,
+        center: data.normalization.center.to_array(),
+        scale: data.normalization.scale,
+        background: [0.0; 3],
+    };
+    let decoded = stream::decode(&stream::encode(&header, &content, None).unwrap()).unwrap();
+    let Base::Anchors(model) = &decoded.scene.base else { panic!("an anchor stream") };
+    // The stream holds every anchor with an open mask, at its trained position.
+    let open: std::collections::HashSet<[u32; 3]> = voxels
+        .iter()
+        .zip(trained.masks.chunks_exact(4))
+        .filter(|(_, m)| m.iter().any(|&o| o))
+        .map(|(v, _)| *v)
+        .collect();
+    let stored = grid_coordinates(&model.positions, &grid).unwrap();
+    assert_eq!(stored.len(), open.len());
+    assert!(stored.iter().all(|v| open.contains(v)), "the stream's anchors are the trained ones");
 }
 
 #[test]

@@ -20,21 +20,25 @@
 //! With a context model ([`super::context`]), the rate's means and scales come per anchor
 //! from the model's grid and network instead of per channel.
 //!
-//! Anchors stay where initialization put them; growing and pruning anchors come next (issue
-//! 15).
+//! With a [`GrowthSchedule`], anchors are grown where neural Gaussians keep large screen
+//! gradients and pruned where they stay transparent ([`super::growth`]); the context model's
+//! lookup is rebuilt for the new anchors.
 
 use anyhow::{Result, bail};
 use burn::tensor::activation::{log_sigmoid, sigmoid};
 use burn::tensor::{Device, Int, Tensor, TensorData};
 use pwgs_dataset::Dataset;
-use pwgs_decoder::anchor::{AnchorModel, Mlp};
+use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::SH_C0;
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::stream::anchor_context::predicted_values;
+use pwgs_decoder::stream::plain::PositionGrid;
 
 use super::context::ContextLookup;
+use super::growth::{AnchorStats, GrowthPlan, GrowthSchedule, plan};
+use super::host::{host_tensor, kept_and_added, mlp_of, mlp_tensors};
 use super::quantize::{AnchorSteps, TrainedContext};
 use super::rate::factorized_bits;
 use crate::metrics::ssim::{SsimConvention, ssim};
@@ -101,9 +105,27 @@ pub struct AnchorTrainer {
     /// Stage 2's settings and what its WD compares, until it starts; then the stage.
     wrapper_settings: Option<(WrapperTraining, VggWasserstein)>,
     wrapper: Option<WrapperStage>,
+    growth: Option<Growth>,
     frame: SceneFrame,
     pub iteration: u32,
     pub iterations: u32,
+}
+
+/// Growing and pruning: when, the grid the anchors sit on, their voxels (in the trainer's
+/// order), what the steps since the last event saw, and the totals so far.
+struct Growth {
+    schedule: GrowthSchedule,
+    grid: PositionGrid,
+    voxels: Vec<[u32; 3]>,
+    stats: AnchorStats,
+    totals: GrowthTotals,
+}
+
+/// Anchors added and removed over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct GrowthTotals {
+    pub grown: usize,
+    pub pruned: usize,
 }
 
 /// What one step reports.
@@ -117,38 +139,6 @@ pub struct AnchorStep {
     pub bits_per_value: Option<f32>,
     /// Open masks, out of N x K.
     pub open_masks: usize,
-}
-
-fn host_tensor(values: &[f32], shape: [usize; 2], device: &Device) -> Tensor<2> {
-    Tensor::from_data(TensorData::new(values.to_vec(), shape), device)
-}
-
-/// Row-major [out][in] weights as an [in, out] tensor, and back.
-fn transposed(values: &[f32], outputs: usize, inputs: usize) -> Vec<f32> {
-    (0..inputs * outputs).map(|j| values[(j % outputs) * inputs + j / outputs]).collect()
-}
-
-fn mlp_tensors(m: &Mlp, device: &Device) -> [Tensor<2>; 4] {
-    [
-        host_tensor(&transposed(&m.w1, m.hidden, m.inputs), [m.inputs, m.hidden], device),
-        host_tensor(&m.b1, [1, m.hidden], device),
-        host_tensor(&transposed(&m.w2, m.outputs, m.hidden), [m.hidden, m.outputs], device),
-        host_tensor(&m.b2, [1, m.outputs], device),
-    ]
-}
-
-fn mlp_of(t: &[Tensor<2>]) -> Mlp {
-    let [inputs, hidden] = t[0].dims();
-    let outputs = t[2].dims()[1];
-    Mlp {
-        inputs,
-        hidden,
-        outputs,
-        w1: transposed(&tensor_values(t[0].clone()), inputs, hidden),
-        b1: tensor_values(t[1].clone()),
-        w2: transposed(&tensor_values(t[2].clone()), hidden, outputs),
-        b2: tensor_values(t[3].clone()),
-    }
 }
 
 /// Scaffold-GS's pixel objective: 0.8 L1 + 0.2 (1 - SSIM).
@@ -225,6 +215,7 @@ impl AnchorTrainer {
             context: None,
             wrapper_settings: None,
             wrapper: None,
+            growth: None,
             frame: data.normalization.frame(),
             iteration: 0,
             iterations,
@@ -273,6 +264,21 @@ impl AnchorTrainer {
             grid: tensor_values(self.params[PARAMETERS].clone()),
             mlp: mlp_of(&self.params[PARAMETERS + 1..PARAMETERS + 5]),
         })
+    }
+
+    /// Grows and prunes anchors on `schedule`; `voxels` are the anchors' coordinates on `grid`,
+    /// in the model's order.
+    pub fn with_growth(mut self, schedule: GrowthSchedule, grid: PositionGrid, voxels: Vec<[u32; 3]>) -> Self {
+        let [n, _, k] = self.shape;
+        assert_eq!(voxels.len(), n, "one voxel per anchor");
+        let stats = AnchorStats::new(n, k);
+        self.growth = Some(Growth { schedule, grid, voxels, stats, totals: GrowthTotals::default() });
+        self
+    }
+
+    /// Anchors grown and pruned so far, when growing is on.
+    pub fn growth_totals(&self) -> Option<GrowthTotals> {
+        self.growth.as_ref().map(|g| g.totals)
     }
 
     /// Trains the perceptual wrapper from `settings.start` on. Loads what WD compares now, so
@@ -379,7 +385,7 @@ impl AnchorTrainer {
             bail!("no anchor gives a visible Gaussian at iteration {}", self.iteration);
         }
         let m = kept.len();
-        let index = Tensor::<1, Int>::from_data(TensorData::new(kept, [m]), &device);
+        let index = Tensor::<1, Int>::from_data(TensorData::new(kept.clone(), [m]), &device);
         let per_gaussian = |t: Tensor<2>, width: usize| t.reshape([n * k, width]).select(0, index.clone());
         let per_anchor = |t: Tensor<2>, width: usize| {
             per_gaussian(t.unsqueeze_dim::<3>(1).repeat_dim(1, k).reshape([n * k, width]), width)
@@ -396,13 +402,15 @@ impl AnchorTrainer {
         let rotations = cov.slice([0..m, 3..7]);
         let opacity_logits = (alpha.clone() / (alpha.neg() + 1.0)).log().reshape([m]);
         let sh = ((color - 0.5) / SH_C0).reshape([m, 1, 3]);
+        let gathering = self.growth.as_ref().is_some_and(|g| self.iteration < g.schedule.until);
         let probe = Tensor::<1>::zeros([m], &device).autodiff();
+        let probe = if gathering { probe.require_grad() } else { probe };
         let step_crop = self.wrapper.as_ref().map(|stage| stage.crop(self.rng.next_u64() as usize));
         let mut view = SplatView::full(camera, RenderOptions { background: self.background, ..Default::default() });
         if let Some(c) = step_crop {
             view.window = c.window;
         }
-        let image = render(means, log_scales.clone(), rotations, opacity_logits, sh, probe, view);
+        let image = render(means, log_scales.clone(), rotations, opacity_logits, sh, probe.clone(), view);
         let volume = log_scales.sum_dim(1).exp().mean() * VOLUME_WEIGHT;
         let (distortion, shown, wrapper_params) = match (&mut self.wrapper, step_crop) {
             (Some(stage), Some(step)) => {
@@ -438,6 +446,14 @@ impl AnchorTrainer {
         if !loss_value.is_finite() {
             bail!("anchor training diverged at iteration {}: the loss is {loss_value}", self.iteration);
         }
+        if gathering && let (Some(growth), Some(screen)) = (&mut self.growth, probe.grad(&grads)) {
+            // As 3DGS, in normalized device coordinates: d/d(ndc) = d/d(pixel) * size / 2.
+            let ndc = 0.5 * camera.width.max(camera.height) as f32;
+            let screen: Vec<f32> = tensor_values(screen).into_iter().map(|g| g * ndc).collect();
+            let opacity: Vec<f32> = kept.iter().map(|&j| alpha_host[j as usize]).collect();
+            let rendered: Vec<usize> = kept.iter().map(|&j| j as usize).collect();
+            growth.stats.add(&rendered, &screen, &opacity);
+        }
         let wrapper_grad = wrapper_params.map(|p| p.grad(&grads).unwrap_or_else(|| p.inner().zeros_like()));
         if let (Some(stage), Some(grad)) = (&mut self.wrapper, wrapper_grad)
             && stage.update(grad).is_none()
@@ -451,6 +467,9 @@ impl AnchorTrainer {
             self.params[i] = self.params[i].clone() - direction(grad, first, second, self.iteration + 1) * rate;
         }
         self.iteration += 1;
+        if self.growth.as_ref().is_some_and(|g| g.schedule.is_event(self.iteration)) {
+            self.grow_and_prune();
+        }
         let psnr = -10.0 * tensor_values(mse)[0].log10();
         Ok(AnchorStep { loss: loss_value, psnr, gaussians: m, bits_per_value, open_masks })
     }
@@ -490,6 +509,59 @@ impl AnchorTrainer {
         let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
         let total = ((features + scaling) * anchor_open + offsets).sum();
         total / self.rated_values() as f32
+    }
+
+    /// A growth event: plans from the statistics, then rebuilds every per-anchor tensor (kept
+    /// rows, then the grown anchors' with zero moments), the masks and the context lookup.
+    fn grow_and_prune(&mut self) {
+        let Some(growth) = &mut self.growth else { return };
+        let [n, f, k] = self.shape;
+        let device = self.positions.device();
+        let positions = tensor_values(self.positions.clone());
+        let scaling = tensor_values(self.params[1].clone());
+        let offsets = tensor_values(self.params[2].clone());
+        let grid = growth.grid;
+        // Where the neural Gaussians are, in voxels from the grid's origin (as a step places
+        // them: anchor + offset x exp(offset scale)).
+        let neural: Vec<[f64; 3]> = (0..n * k)
+            .map(|j| {
+                let a = j / k;
+                std::array::from_fn(|x| {
+                    let p = positions[3 * a + x] + offsets[3 * j + x] * scaling[6 * a + x].exp();
+                    (f64::from(p) - f64::from(grid.origin[x])) / f64::from(grid.cell)
+                })
+            })
+            .collect();
+        let GrowthPlan { keep, grown } =
+            plan(&growth.stats, &growth.voxels, grid.depth, &neural, &growth.schedule, &mut self.rng);
+        let features = tensor_values(self.params[0].clone());
+        let mut added: [Vec<f32>; 4] = Default::default();
+        for g in &grown {
+            added[0].extend((0..f).map(|c| g.parents.iter().map(|&a| features[a * f + c]).fold(f32::MIN, f32::max)));
+            added[1].extend([(g.cell as f32 * grid.cell).ln(); 6]);
+            added[2].extend(std::iter::repeat_n(0.0, 3 * k));
+            added[3].extend(std::iter::repeat_n(INITIAL_MASK_LOGIT, k));
+        }
+        for (i, new_rows) in [0, 1, 2, MASK_LOGITS].into_iter().zip(&added) {
+            let zeros = vec![0.0; new_rows.len()];
+            self.params[i] = kept_and_added(&self.params[i], &keep, new_rows);
+            let (first, second) = &mut self.moments[i];
+            *first = kept_and_added(first, &keep, &zeros);
+            *second = kept_and_added(second, &keep, &zeros);
+        }
+        let new_positions: Vec<f32> = grown.iter().flat_map(|g| grid.position(g.voxel)).collect();
+        self.positions = kept_and_added(&self.positions, &keep, &new_positions);
+        let masks: Vec<bool> = keep.iter().flat_map(|&a| self.masks[a * k..(a + 1) * k].iter().copied()).collect();
+        self.masks = masks.into_iter().chain(std::iter::repeat_n(true, grown.len() * k)).collect();
+        growth.voxels = keep.iter().map(|&a| growth.voxels[a]).chain(grown.iter().map(|g| g.voxel)).collect();
+        let anchors = growth.voxels.len();
+        growth.totals.grown += grown.len();
+        growth.totals.pruned += n - keep.len();
+        growth.stats = AnchorStats::new(anchors, k);
+        self.shape[0] = anchors;
+        if let Some(lookup) = &self.context {
+            self.context = Some(ContextLookup::new(lookup.shape.clone(), &growth.voxels, grid.depth, &device));
+        }
     }
 
     pub fn device(&self) -> Device {

@@ -13,9 +13,10 @@ use serde::Serialize;
 
 use super::{WrapperSummary, check_outputs, print_wrapper, quantize_wrapper, section_sizes, write_report};
 use crate::anchor::context::{ContextLookup, default_shape};
+use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
-use crate::anchor::train::AnchorTrainer;
+use crate::anchor::train::{AnchorTrainer, GrowthTotals};
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
 use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians};
@@ -45,6 +46,10 @@ pub struct AnchorJob {
     pub lambda: Option<f32>,
     /// Train and code with the context model (SPEC.md section 12.7); needs the rate term.
     pub context: bool,
+    /// Grow and prune anchors over the first half of stage 1 ([`crate::anchor::growth`]), up
+    /// to `max_anchors` (default: twice the initial anchors).
+    pub growth: bool,
+    pub max_anchors: Option<usize>,
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
     pub wrapper: Option<WrapperTraining>,
@@ -93,6 +98,8 @@ pub struct AnchorReport {
     pub estimated_attribute_bytes: Option<f64>,
     /// With the context model: its grid's size as an adaptive binary coder would code it.
     pub context_grid_bytes: Option<f64>,
+    /// Anchors grown and pruned during training, when growing was on.
+    pub growth: Option<GrowthTotals>,
     /// Anchors in the stream (those with an open mask).
     pub stream_anchors: usize,
     /// The stream (also when none was written to a file: the evaluation renders its decoding).
@@ -138,11 +145,19 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if let Some(lambda) = job.lambda {
         trainer = trainer.with_rate(lambda, job.iterations * 3 / 10);
     }
+    let coords = grid_coordinates(&initial.positions, &grid)?;
     if job.context {
-        let coords = grid_coordinates(&initial.positions, &grid)?;
         let lookup = ContextLookup::new(default_shape(), &coords, grid.depth, &trainer.device());
         println!("context grid: {} entries in {} levels", lookup.entries, lookup.shape.levels.len());
         trainer = trainer.with_context(lookup);
+    }
+    if job.growth {
+        let schedule = GrowthSchedule::scaled(job.iterations, job.max_anchors.unwrap_or(2 * initial.len()));
+        println!(
+            "growing and pruning anchors every {} iterations from {} to {}, up to {}",
+            schedule.every, schedule.from, schedule.until, schedule.max_anchors
+        );
+        trainer = trainer.with_growth(schedule, grid, coords);
     }
     let start = Instant::now();
     let mut last_step_gaussians = 0;
@@ -163,6 +178,10 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     }
     let training_seconds = start.elapsed().as_secs_f64();
     println!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
+    let growth = trainer.growth_totals();
+    if let Some(g) = growth {
+        println!("anchors: {} grown, {} pruned", g.grown, g.pruned);
+    }
     // What the rate model says the attributes cost (at the last step's noisy values), to set
     // beside the stream's sections.
     let estimated_attribute_bytes = last_bits.map(|b| f64::from(b) * trainer.rated_values() as f64 / 8.0);
@@ -252,6 +271,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         lambda: job.lambda,
         estimated_attribute_bytes,
         context_grid_bytes,
+        growth,
         stream_anchors: content.len(),
         stream: stream_summary,
         mean,

@@ -61,7 +61,7 @@ impl GradStats {
         }
     }
 
-    fn mean(&self, i: usize) -> f32 {
+    pub fn mean(&self, i: usize) -> f32 {
         if self.views[i] == 0 { 0.0 } else { self.sum[i] / self.views[i] as f32 }
     }
 }
