@@ -28,6 +28,11 @@ fn trains_evaluates_and_writes_outputs() {
     assert_eq!(report["training"]["iterations"], 30);
     assert_eq!(report["views"].as_array().unwrap().len(), 2);
     assert!(report["mean"]["psnr"].as_f64().unwrap() > 8.0);
+    if cfg!(target_os = "linux") {
+        // The run's peak memory: more than the 1 MiB the process starts with, less than 24 GiB.
+        let peak = report["peak_resident_mib"].as_f64().expect("Linux reports the peak memory");
+        assert!(peak > 1.0 && peak < 24.0 * 1024.0, "{peak} MiB");
+    }
     assert!(std::path::Path::new(&dir("eval")).join("view_008.png").is_file());
     assert!(std::path::Path::new(&dir("eval")).join("gt/view_008.png").is_file());
     let model = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("model.ply"))).unwrap();

@@ -11,7 +11,9 @@ use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::{self, Decoded};
 use serde::Serialize;
 
-use super::{WrapperSummary, check_outputs, print_wrapper, quantize_wrapper, section_sizes, write_report};
+use super::{
+    WrapperSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, section_sizes, write_report,
+};
 use crate::anchor::context::{ContextLookup, default_shape};
 use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
@@ -106,6 +108,8 @@ pub struct AnchorReport {
     pub stream: AnchorStreamSummary,
     pub mean: Option<MeanScore>,
     pub views: Vec<ViewScore>,
+    /// Peak resident memory of the whole run, in MiB, where the system says it.
+    pub peak_resident_mib: Option<f64>,
 }
 
 pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
@@ -276,6 +280,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         stream: stream_summary,
         mean,
         views,
+        peak_resident_mib: peak_resident_mib(),
     };
     if let Some(path) = &job.report {
         write_report(path, &report)?;

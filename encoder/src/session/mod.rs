@@ -173,6 +173,15 @@ fn print_wrapper(w: &QuantizedSynthesis) {
     );
 }
 
+/// The process's peak resident memory so far, in MiB (Linux's VmHWM; `None` elsewhere), which
+/// reports state beside the run's time.
+fn peak_resident_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: f64 = line.trim_start_matches("VmHWM:").trim().trim_end_matches("kB").trim().parse().ok()?;
+    Some(kib / 1024.0)
+}
+
 fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
     pwgs_decoder::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(report)?)
         .with_context(|| format!("cannot write {}", path.display()))

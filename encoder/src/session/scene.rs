@@ -15,7 +15,8 @@ use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
 use super::{
-    StreamOptions, StreamSummary, check_outputs, print_wrapper, quantize_wrapper, read_ply, write_report, write_stream,
+    StreamOptions, StreamSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, read_ply,
+    write_report, write_stream,
 };
 use crate::compress::StreamContext;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
@@ -54,6 +55,8 @@ pub struct Report {
     /// Scores of the decoded stream when one was written, else of the trained model.
     pub mean: Option<MeanScore>,
     pub views: Vec<ViewScore>,
+    /// Peak resident memory of the whole run, in MiB, where the system says it.
+    pub peak_resident_mib: Option<f64>,
 }
 
 pub fn encode_scene(job: SceneJob) -> Result<Report> {
@@ -157,6 +160,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         stream: stream.map(|(_, summary)| summary),
         mean,
         views,
+        peak_resident_mib: peak_resident_mib(),
     };
     if let Some(path) = &job.report {
         write_report(path, &report)?;
