@@ -1,12 +1,12 @@
-//! Rate-distortion plots (SVG): one chart per metric, stream size against the metric, one
-//! line per curve.
+//! Charts (SVG), one line per curve: rate-distortion (stream size against a metric) and
+//! speed-versus-error (render or training time against a metric).
 
 use std::path::Path;
 
 use anyhow::{Result, anyhow};
 use plotters::prelude::*;
 
-use crate::runs::{Curve, Metric};
+use crate::runs::{Axis, Curve, Metric};
 
 /// Distinct line colors, cycled.
 const COLORS: [RGBColor; 6] = [
@@ -18,14 +18,11 @@ const COLORS: [RGBColor; 6] = [
     RGBColor(23, 190, 207),
 ];
 
-/// Draws `metric` against the stream size (KB) for every curve into the SVG `path`; `false`
-/// (and nothing written) when no curve has the metric.
-pub fn rd_chart(curves: &[Curve], metric: Metric, title: &str, path: &Path) -> Result<bool> {
-    let series: Vec<(&str, Vec<(f64, f64)>)> = curves
-        .iter()
-        .map(|c| (c.name.as_str(), c.points(metric).into_iter().map(|(b, s)| (b / 1000.0, s)).collect::<Vec<_>>()))
-        .filter(|(_, p)| !p.is_empty())
-        .collect();
+/// Draws `metric` against `axis` for every curve into the SVG `path`; `false` (and nothing
+/// written) when no run has both.
+pub fn chart(curves: &[Curve], axis: Axis, metric: Metric, title: &str, path: &Path) -> Result<bool> {
+    let series: Vec<(&str, Vec<(f64, f64)>)> =
+        curves.iter().map(|c| (c.name.as_str(), c.points_on(axis, metric))).filter(|(_, p)| !p.is_empty()).collect();
     let all: Vec<(f64, f64)> = series.iter().flat_map(|(_, p)| p.iter().copied()).collect();
     if all.is_empty() {
         return Ok(false);
@@ -46,7 +43,7 @@ pub fn rd_chart(curves: &[Curve], metric: Metric, title: &str, path: &Path) -> R
             .x_label_area_size(40)
             .y_label_area_size(64)
             .build_cartesian_2d(x, y)?;
-        chart.configure_mesh().x_desc("stream size (KB)").y_desc(metric.label()).draw()?;
+        chart.configure_mesh().x_desc(axis.label()).y_desc(metric.label()).draw()?;
         for (i, (name, points)) in series.iter().enumerate() {
             let color = COLORS[i % COLORS.len()];
             chart

@@ -1,5 +1,6 @@
 //! The report: `report.md` with the runs, the Bjøntegaard deltas of every curve against the
-//! reference curve, and one RD chart per metric beside it.
+//! reference curve, one RD chart per metric, speed-versus-error charts (render and training
+//! time against PSNR and DISTS) and every run's per-view scores, the charts beside it.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -7,8 +8,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 
 use crate::bjontegaard::{RdPoint, bd_quality, bd_rate};
-use crate::plot::rd_chart;
-use crate::runs::{Curve, Metric};
+use crate::plot::chart;
+use crate::runs::{Axis, Curve, Metric};
 
 fn rd_points(curve: &Curve, metric: Metric) -> Vec<RdPoint> {
     curve.points(metric).into_iter().map(|(bytes, quality)| RdPoint { bytes, quality }).collect()
@@ -29,20 +30,40 @@ fn digits(metric: Metric) -> usize {
 
 /// The runs of every curve, one table.
 fn runs_table(curves: &[Curve]) -> String {
-    let mut s = String::from("| curve | bytes | PSNR | SSIM | LPIPS | DISTS | WD | training s | report |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    let mut s = String::from(
+        "| curve | bytes | PSNR | SSIM | LPIPS | DISTS | WD | training s | render s/view | peak MiB | report |\n",
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for c in curves {
         for r in &c.runs {
             let scores: Vec<String> = Metric::ALL.iter().map(|&m| cell(r.score(m), digits(m))).collect();
             let _ = writeln!(
                 s,
-                "| {} | {:.0} | {} | {} | `{}` |",
+                "| {} | {:.0} | {} | {} | {} | {} | `{}` |",
                 c.name,
                 r.bytes,
                 scores.join(" | "),
                 cell(r.training_seconds, 0),
+                cell(r.render_seconds, 3),
+                cell(r.peak_resident_mib, 0),
                 r.file
             );
+        }
+    }
+    s
+}
+
+/// Every run's test views, one row each.
+fn views_table(curves: &[Curve]) -> String {
+    let mut s = String::from("| curve | bytes | view | PSNR | SSIM | LPIPS | DISTS | WD | render s |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    for c in curves {
+        for r in &c.runs {
+            for v in &r.views {
+                let scores: Vec<String> = Metric::ALL.iter().map(|&m| cell(v.score(m), digits(m))).collect();
+                let time = cell(v.render_seconds, 3);
+                let _ = writeln!(s, "| {} | {:.0} | {} | {} | {time} |", c.name, r.bytes, v.name, scores.join(" | "));
+            }
         }
     }
     s
@@ -88,13 +109,27 @@ pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path
         reference.name,
         deltas_table(curves, reference)
     );
-    md.push_str("## Charts\n\n");
+    md.push_str("## Rate-distortion charts\n\n");
     for m in Metric::ALL {
         let file = format!("rd_{}.svg", m.key());
-        if rd_chart(curves, m, &format!("{title}: {}", m.label()), &dir.join(&file))? {
+        if chart(curves, Axis::Kilobytes, m, &format!("{title}: {}", m.label()), &dir.join(&file))? {
             let _ = writeln!(md, "![{}]({file})\n", m.label());
         }
     }
+    md.push_str(
+        "## Speed against error\n\nRender time: the mean time to render one decoded test view, at each rate \
+         point; training time: the encoder's. Times are the machines' the runs were made on.\n\n",
+    );
+    for (axis, name) in [(Axis::RenderSeconds, "render"), (Axis::TrainingSeconds, "training")] {
+        for m in [Metric::Psnr, Metric::Dists] {
+            let file = format!("speed_{name}_{}.svg", m.key());
+            let caption = format!("{title}: {} against {name} time", m.label());
+            if chart(curves, axis, m, &caption, &dir.join(&file))? {
+                let _ = writeln!(md, "![{caption}]({file})\n");
+            }
+        }
+    }
+    let _ = write!(md, "## Per-view scores\n\n{}", views_table(curves));
     let path = dir.join("report.md");
     std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(path)

@@ -44,19 +44,48 @@ impl Metric {
     }
 }
 
+/// Scores per [`Metric::ALL`], each when the report has it.
+pub type Scores = [Option<f64>; 5];
+
+fn scores_of(v: &Value) -> Scores {
+    Metric::ALL.map(|m| v[m.key()].as_f64())
+}
+
+fn index(metric: Metric) -> usize {
+    Metric::ALL.iter().position(|&m| m == metric).expect("every metric is listed")
+}
+
+/// One decoded test view of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewRun {
+    pub name: String,
+    pub scores: Scores,
+    pub render_seconds: Option<f64>,
+}
+
+impl ViewRun {
+    pub fn score(&self, metric: Metric) -> Option<f64> {
+        self.scores[index(metric)]
+    }
+}
+
 /// One encoded stream and the mean scores of its decoded test views.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Run {
     pub file: String,
     pub bytes: f64,
     pub training_seconds: Option<f64>,
-    /// Per [`Metric::ALL`], when the report has it.
-    pub scores: [Option<f64>; 5],
+    /// Mean time to render one test view from the decoded stream.
+    pub render_seconds: Option<f64>,
+    /// The whole encoding run's peak resident memory, where the report states it.
+    pub peak_resident_mib: Option<f64>,
+    pub scores: Scores,
+    pub views: Vec<ViewRun>,
 }
 
 impl Run {
     pub fn score(&self, metric: Metric) -> Option<f64> {
-        self.scores[Metric::ALL.iter().position(|&m| m == metric).expect("every metric is listed")]
+        self.scores[index(metric)]
     }
 
     /// Reads a report of `pwenc --report` (plain or anchor base) that has a stream.
@@ -68,11 +97,43 @@ impl Run {
         };
         // A plain-base report nests its training time; an anchor-base report has it on top.
         let training_seconds = r["training"]["seconds"].as_f64().or_else(|| r["training_seconds"].as_f64());
-        let scores = Metric::ALL.map(|m| r["mean"][m.key()].as_f64());
+        let scores = scores_of(&r["mean"]);
         if scores.iter().all(Option::is_none) {
             bail!("{} has no mean scores (was it written with --eval?)", path.display());
         }
-        Ok(Self { file: path.display().to_string(), bytes, training_seconds, scores })
+        let views: Vec<ViewRun> = r["views"]
+            .as_array()
+            .map(|views| {
+                views
+                    .iter()
+                    .map(|v| ViewRun {
+                        name: v["name"].as_str().unwrap_or("?").to_string(),
+                        scores: scores_of(v),
+                        render_seconds: v["render_seconds"].as_f64(),
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let times: Vec<f64> = views.iter().filter_map(|v| v.render_seconds).collect();
+        let render_seconds = (!times.is_empty()).then(|| times.iter().sum::<f64>() / times.len() as f64);
+        Ok(Self {
+            file: path.display().to_string(),
+            bytes,
+            training_seconds,
+            render_seconds,
+            peak_resident_mib: r["peak_resident_mib"].as_f64(),
+            scores,
+            views,
+        })
+    }
+
+    /// The run's position on `axis`, when the report has it.
+    pub fn position(&self, axis: Axis) -> Option<f64> {
+        match axis {
+            Axis::Kilobytes => Some(self.bytes / 1000.0),
+            Axis::RenderSeconds => self.render_seconds,
+            Axis::TrainingSeconds => self.training_seconds,
+        }
     }
 }
 
@@ -100,5 +161,30 @@ impl Curve {
     /// (bytes, score) of every run that has `metric`.
     pub fn points(&self, metric: Metric) -> Vec<(f64, f64)> {
         self.runs.iter().filter_map(|r| r.score(metric).map(|s| (r.bytes, s))).collect()
+    }
+
+    /// (position on `axis`, score) of every run that has both, in the curve's (size) order.
+    pub fn points_on(&self, axis: Axis, metric: Metric) -> Vec<(f64, f64)> {
+        self.runs.iter().filter_map(|r| Some((r.position(axis)?, r.score(metric)?))).collect()
+    }
+}
+
+/// What a chart's horizontal axis shows: the stream's size, or a cost in time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Axis {
+    Kilobytes,
+    /// Mean render time of a decoded test view (speed against error at each quality).
+    RenderSeconds,
+    /// The encoder's training time (speed against error over iteration budgets).
+    TrainingSeconds,
+}
+
+impl Axis {
+    pub fn label(self) -> &'static str {
+        match self {
+            Axis::Kilobytes => "stream size (KB)",
+            Axis::RenderSeconds => "render time per test view (s)",
+            Axis::TrainingSeconds => "training time (s)",
+        }
     }
 }

@@ -12,9 +12,20 @@ fn report(dir: &Path, name: &str, bytes: f64, psnr: f64, dists: f64, plain_base:
     } else {
         serde_json::json!({ "iterations": 2000, "training_seconds": 120.0 })
     };
+    // Two views around the mean; rendering takes longer the larger the stream.
+    let views: Vec<serde_json::Value> = [-0.5, 0.5]
+        .iter()
+        .enumerate()
+        .map(|(i, d)| {
+            serde_json::json!({ "name": format!("view{i}.png"), "psnr": psnr + d, "ssim": 0.8,
+                                "dists": dists, "render_seconds": bytes / 1e6 + 0.01 * i as f64 })
+        })
+        .collect();
     let mut value = serde_json::json!({
         "stream": { "bytes": bytes },
         "mean": { "psnr": psnr, "ssim": 0.8, "dists": dists },
+        "views": views,
+        "peak_resident_mib": 512.0,
     });
     value.as_object_mut().unwrap().extend(training.as_object().unwrap().clone());
     std::fs::write(&path, value.to_string()).unwrap();
@@ -54,6 +65,19 @@ fn the_report_states_the_deltas_the_curves_were_made_with() {
         assert!(svg.starts_with("<svg") && svg.contains("half"), "rd_{metric}.svg");
     }
     assert!(!out.join("rd_wd.svg").exists(), "no run has WD");
+    // Speed against error: each run's mean render time (bytes / 1e6 + 0.005 s) and training time.
+    for chart in ["speed_render_psnr", "speed_render_dists", "speed_training_psnr", "speed_training_dists"] {
+        let svg = std::fs::read_to_string(out.join(format!("{chart}.svg"))).unwrap();
+        assert!(svg.contains("half") && md.contains(&format!("({chart}.svg)")), "{chart}");
+    }
+    let runs = md.split("## Runs").nth(1).unwrap();
+    let row = runs.lines().find(|l| l.starts_with("| half | 50000 |")).unwrap_or_else(|| panic!("{md}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    assert_eq!((cells[8], cells[9], cells[10]), ("120", "0.055", "512"), "{row}");
+    // Per-view scores: both views of every run.
+    let views = md.split("## Per-view scores").nth(1).unwrap_or_else(|| panic!("{md}"));
+    assert_eq!(views.lines().filter(|l| l.starts_with("| ")).count(), 1 + 12, "a header and 6 runs x 2 views");
+    assert!(views.contains("| base | 100000 | view1.png | 25.50 |"), "{views}");
 }
 
 #[test]
