@@ -161,6 +161,10 @@ struct EncodeArgs {
     /// With --anchor-growth: growing stops at this many anchors (default: twice the initial).
     #[arg(long, requires = "anchor_growth")]
     max_anchors: Option<usize>,
+    /// With --base anchor and a rate term: learn a factor on the step of each attribute group
+    /// (features, scaling, offsets), so that λ alone sets the rate point.
+    #[arg(long)]
+    learn_anchor_steps: bool,
     /// Training iterations (0: evaluate the initialization).
     #[arg(long, default_value_t = 3000)]
     iters: u32,
@@ -429,6 +433,7 @@ impl EncodeArgs {
             context: !self.no_anchor_context && self.lambda > 0.0,
             growth: self.anchor_growth,
             max_anchors: self.max_anchors,
+            learned_steps: self.learn_anchor_steps,
             wrapper: self.wrapper.training(self.iters, self.seed, self.weight_dirs())?,
             export_ply: self.export_ply.clone(),
             output: self.output.clone(),

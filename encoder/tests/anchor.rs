@@ -116,6 +116,37 @@ fn grown_anchors_train_and_code() {
     assert!(stored.iter().all(|v| open.contains(v)), "the stream's anchors are the trained ones");
 }
 
+/// Learned steps follow λ: a heavy rate term coarsens every group's step, a light one refines
+/// them, and the trainer reports the steps the stream is written with.
+#[test]
+fn learned_steps_follow_lambda() {
+    let tmp = tempfile::tempdir().unwrap();
+    let options = SyntheticOptions { width: 64, height: 48, views: 8, seed: 5, points: 600 };
+    generate(tmp.path(), &options).unwrap();
+    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
+    let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel: 0.05 * data.normalization.scale };
+    let (initial, _) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    let base = AnchorSteps::default();
+    let learned = |lambda: f32| {
+        let mut trainer = AnchorTrainer::new(&initial, &data, 120, [0.0; 3], 0)
+            .unwrap()
+            .with_quantization_noise(base, 0)
+            .with_rate(lambda, 20)
+            .with_learned_steps();
+        assert_eq!(trainer.steps(), Some(base), "the factors start at 1");
+        while trainer.iteration < trainer.iterations {
+            trainer.step().unwrap();
+        }
+        let s = trainer.steps().unwrap();
+        [s.feature / base.feature, s.scaling / base.scaling, s.offset / base.offset]
+    };
+    let (heavy, light) = (learned(1.0), learned(1e-6));
+    eprintln!("step factors: λ 1 {heavy:?}, λ 1e-6 {light:?}");
+    assert!(heavy.iter().all(|&f| f > 1.0), "{heavy:?}");
+    assert!(light.iter().all(|&f| f < 1.0), "{light:?}");
+    assert!(heavy.iter().chain(&light).all(|&f| (0.1..=10.0).contains(&f)), "within the factors' range");
+}
+
 #[test]
 fn pwenc_trains_and_evaluates_the_anchor_base() {
     let tmp = tempfile::tempdir().unwrap();
@@ -140,6 +171,7 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let report2 = dir("r2.json");
     args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "-o", &stream_path, "--report", &report2]);
+    args.push("--learn-anchor-steps");
     let out = pwenc(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let bytes = std::fs::read(&stream_path).unwrap();
@@ -152,6 +184,11 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let stream::Content::Anchors(content) = &decoded.content else { panic!("an anchor stream") };
     assert!(content.context.is_some(), "no ACTX section in the default stream");
     assert!(report["context_grid_bytes"].as_f64().is_some_and(|b| b > 0.0), "{report}");
+    // --learn-anchor-steps: the stream holds the learned steps, no longer the base ones.
+    let step = report["stream"]["feature_step"].as_f64().unwrap();
+    assert!(step != 0.125 && step > 0.0, "{step}");
+    let stored = content.feature_step;
+    assert_eq!(stored, step as f32);
 
     // --export-ply writes standard Gaussians of SH degree 3; --init-ply is refused before any
     // training, and nothing is written.

@@ -52,6 +52,9 @@ pub struct AnchorJob {
     /// to `max_anchors` (default: twice the initial anchors).
     pub growth: bool,
     pub max_anchors: Option<usize>,
+    /// Learn a factor on each group's step while the rate term is on (the stream is written
+    /// with the learned steps).
+    pub learned_steps: bool,
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
     pub wrapper: Option<WrapperTraining>,
@@ -155,6 +158,9 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         println!("context grid: {} entries in {} levels", lookup.entries, lookup.shape.levels.len());
         trainer = trainer.with_context(lookup);
     }
+    if job.learned_steps && job.lambda.is_some() {
+        trainer = trainer.with_learned_steps();
+    }
     if job.growth {
         let schedule = GrowthSchedule::scaled(job.iterations, job.max_anchors.unwrap_or(2 * initial.len()));
         println!(
@@ -195,7 +201,14 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let model = if job.context { "context" } else { "factorized" };
         println!("rate model ({model}) estimate: attributes {bytes:.0} bytes{grid}");
     }
-    let mut content = quantize(&trainer.model(), &grid, &job.steps)?;
+    let steps = trainer.steps().unwrap_or(job.steps);
+    if steps != job.steps {
+        println!(
+            "learned steps: features {:.4}, scaling {:.4}, offsets {:.4} (from {}, {}, {})",
+            steps.feature, steps.scaling, steps.offset, job.steps.feature, job.steps.scaling, job.steps.offset
+        );
+    }
+    let mut content = quantize(&trainer.model(), &grid, &steps)?;
     if let Some(trained) = trainer.context_model() {
         quantize_context(&mut content, &trained);
     }
@@ -244,11 +257,11 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     let stream_summary = AnchorStreamSummary {
         path: job.output.as_ref().map(|p| p.display().to_string()),
         bytes: bytes.len(),
-        feature_step: job.steps.feature,
-        scaling_step: job.steps.scaling,
-        offset_step: job.steps.offset,
-        weight_step_log2: job.steps.weight_exponent,
-        bias_step_log2: job.steps.bias_exponent,
+        feature_step: steps.feature,
+        scaling_step: steps.scaling,
+        offset_step: steps.offset,
+        weight_step_log2: steps.weight_exponent,
+        bias_step_log2: steps.bias_exponent,
         sections: section_sizes(&bytes),
         attribute_sha256: scene.attribute_hash(),
         wrapper: wrapper.as_ref().map(WrapperSummary::of),

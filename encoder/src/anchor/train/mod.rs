@@ -36,11 +36,13 @@ use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::stream::anchor_context::predicted_values;
 use pwgs_decoder::stream::plain::PositionGrid;
 
+mod growth_event;
+mod rate_term;
+
 use super::context::ContextLookup;
-use super::growth::{AnchorStats, GrowthPlan, GrowthSchedule, plan};
-use super::host::{host_tensor, kept_and_added, mlp_of, mlp_tensors};
+use super::growth::{AnchorStats, GrowthSchedule};
+use super::host::{host_tensor, mlp_of, mlp_tensors};
 use super::quantize::{AnchorSteps, TrainedContext};
-use super::rate::factorized_bits;
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::splat_op::{SplatView, render};
@@ -81,6 +83,9 @@ const RATES: [[f32; 2]; 8] = [
     [0.005, 0.005],   // rate model
 ];
 
+/// Learned step factors stay within e^±this (×0.1 to ×10) of the base steps.
+const LOG_STEP_RANGE: f32 = 2.3;
+
 /// Weight of the neural Gaussians' mean volume in the loss (Scaffold-GS).
 const VOLUME_WEIGHT: f32 = 0.01;
 
@@ -102,6 +107,9 @@ pub struct AnchorTrainer {
     rate_term: Option<(f32, u32)>,
     /// The context model that replaces the factorized one in the rate term, when on.
     context: Option<ContextLookup>,
+    /// Where the log factors [1, 3] on the three groups' steps are among the parameters, when
+    /// the steps are learned.
+    learned_steps: Option<usize>,
     /// Stage 2's settings and what its WD compares, until it starts; then the stage.
     wrapper_settings: Option<(WrapperTraining, VggWasserstein)>,
     wrapper: Option<WrapperStage>,
@@ -213,6 +221,7 @@ impl AnchorTrainer {
             noise: None,
             rate_term: None,
             context: None,
+            learned_steps: None,
             wrapper_settings: None,
             wrapper: None,
             growth: None,
@@ -238,6 +247,7 @@ impl AnchorTrainer {
     /// Takes the rate of every anchor's values from the context model of `lookup` (made for
     /// this model's anchors, in its order) instead of the factorized model.
     pub fn with_context(mut self, lookup: ContextLookup) -> Self {
+        assert_eq!(self.params.len(), PARAMETERS, "the context model's tensors follow the base's");
         let [_, f, k] = self.shape;
         let outputs = 2 * predicted_values(f, k);
         let device = self.positions.device();
@@ -264,21 +274,6 @@ impl AnchorTrainer {
             grid: tensor_values(self.params[PARAMETERS].clone()),
             mlp: mlp_of(&self.params[PARAMETERS + 1..PARAMETERS + 5]),
         })
-    }
-
-    /// Grows and prunes anchors on `schedule`; `voxels` are the anchors' coordinates on `grid`,
-    /// in the model's order.
-    pub fn with_growth(mut self, schedule: GrowthSchedule, grid: PositionGrid, voxels: Vec<[u32; 3]>) -> Self {
-        let [n, _, k] = self.shape;
-        assert_eq!(voxels.len(), n, "one voxel per anchor");
-        let stats = AnchorStats::new(n, k);
-        self.growth = Some(Growth { schedule, grid, voxels, stats, totals: GrowthTotals::default() });
-        self
-    }
-
-    /// Anchors grown and pruned so far, when growing is on.
-    pub fn growth_totals(&self) -> Option<GrowthTotals> {
-        self.growth.as_ref().map(|g| g.totals)
     }
 
     /// Trains the perceptual wrapper from `settings.start` on. Loads what WD compares now, so
@@ -322,15 +317,15 @@ impl AnchorTrainer {
         }
     }
 
-    /// Uniform noise in ±step/2 shaped like parameter `i`, or `None` while noise is off.
+    /// Uniform noise in ±1/2 shaped like parameter `i` (to be scaled by its step), or `None`
+    /// while noise is off.
     fn quantization_noise(&mut self, i: usize) -> Option<Tensor<2>> {
-        let (steps, from) = self.noise?;
+        let (_, from) = self.noise?;
         if self.iteration < from {
             return None;
         }
-        let step = [steps.feature, steps.scaling, steps.offset][i];
         let shape = self.params[i].dims();
-        let values: Vec<f32> = (0..shape[0] * shape[1]).map(|_| self.rng.uniform(-0.5, 0.5) * step).collect();
+        let values: Vec<f32> = (0..shape[0] * shape[1]).map(|_| self.rng.uniform(-0.5, 0.5)).collect();
         Some(host_tensor(&values, shape, &self.positions.device()))
     }
 
@@ -359,10 +354,11 @@ impl AnchorTrainer {
         let device = self.positions.device();
         let tracked: Vec<Tensor<2>> = self.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
         // Features, scaling and offsets as the step sees them: with quantization noise when on.
+        let steps = self.step_tensors(&tracked);
         let attributes: Vec<Tensor<2>> = (0..3)
-            .map(|i| match self.quantization_noise(i) {
-                Some(noise) => tracked[i].clone() + noise.autodiff(),
-                None => tracked[i].clone(),
+            .map(|i| match (self.quantization_noise(i), &steps) {
+                (Some(noise), Some(steps)) => tracked[i].clone() + noise.autodiff() * steps[i].clone(),
+                _ => tracked[i].clone(),
             })
             .collect();
         let center = Tensor::<2>::from_data(TensorData::new(camera.center().to_array().to_vec(), [1, 3]), &device);
@@ -437,7 +433,8 @@ impl AnchorTrainer {
         let mut loss = distortion + volume;
         let mut bits_per_value = None;
         if let Some(lambda) = lambda {
-            let bpp = self.mean_bits(&attributes, &tracked, mask_gate, &masks);
+            let steps = steps.expect("the rate needs the quantization steps");
+            let bpp = self.mean_bits(&attributes, &tracked, &steps, mask_gate, &masks);
             bits_per_value = Some(tensor_values(bpp.clone().inner())[0]);
             loss = loss + bpp * lambda;
         }
@@ -472,96 +469,6 @@ impl AnchorTrainer {
         }
         let psnr = -10.0 * tensor_values(mse)[0].log10();
         Ok(AnchorStep { loss: loss_value, psnr, gaussians: m, bits_per_value, open_masks })
-    }
-
-    /// Mean bits per stored value: features and scaling of every anchor with an open mask,
-    /// offsets of every open mask (gated, so that their bits reach the masks), over all N x
-    /// (F + 6 + 3K) values.
-    fn mean_bits(&self, attributes: &[Tensor<2>], tracked: &[Tensor<2>], gate: Tensor<2>, masks: &[bool]) -> Tensor<1> {
-        let [n, f, k] = self.shape;
-        let (steps, _) = self.noise.expect("the rate needs the quantization steps");
-        let (widths, group_steps) = ([f, 6, 3 * k], [steps.feature, steps.scaling, steps.offset]);
-        let values = predicted_values(f, k);
-        let context = self.context.as_ref().map(|lookup| lookup.outputs(&tracked[PARAMETERS..]));
-        // Mean and log scale of group j: per anchor from the context model (whose outputs are,
-        // per value, the mean in steps, then log2 of the scale in steps: SPEC.md section 12.7),
-        // else per channel.
-        let model = |j: usize| match &context {
-            Some(out) => {
-                let (start, w, step) = (widths[..j].iter().sum::<usize>(), widths[j], group_steps[j]);
-                let mean = out.clone().slice([0..n, start..start + w]) * step;
-                let log2_scale = out.clone().slice([0..n, values + start..values + start + w]);
-                (mean, log2_scale * std::f32::consts::LN_2 + step.ln())
-            }
-            None => (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone()),
-        };
-        let anchor_open: Vec<f32> = masks.chunks_exact(k).map(|m| f32::from(u8::from(m.iter().any(|&o| o)))).collect();
-        let anchor_open = host_tensor(&anchor_open, [n, 1], &self.positions.device()).autodiff();
-        let (mean, scale) = model(0);
-        let features = factorized_bits(attributes[0].clone(), mean, scale, steps.feature).sum_dim(1);
-        let (mean, scale) = model(1);
-        let scaling = factorized_bits(attributes[1].clone(), mean, scale, steps.scaling).sum_dim(1);
-        let (mean, scale) = model(2);
-        let offsets = match &context {
-            Some(_) => factorized_bits(attributes[2].clone(), mean, scale, steps.offset).reshape([n * k, 3]),
-            None => factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps.offset),
-        };
-        let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
-        let total = ((features + scaling) * anchor_open + offsets).sum();
-        total / self.rated_values() as f32
-    }
-
-    /// A growth event: plans from the statistics, then rebuilds every per-anchor tensor (kept
-    /// rows, then the grown anchors' with zero moments), the masks and the context lookup.
-    fn grow_and_prune(&mut self) {
-        let Some(growth) = &mut self.growth else { return };
-        let [n, f, k] = self.shape;
-        let device = self.positions.device();
-        let positions = tensor_values(self.positions.clone());
-        let scaling = tensor_values(self.params[1].clone());
-        let offsets = tensor_values(self.params[2].clone());
-        let grid = growth.grid;
-        // Where the neural Gaussians are, in voxels from the grid's origin (as a step places
-        // them: anchor + offset x exp(offset scale)).
-        let neural: Vec<[f64; 3]> = (0..n * k)
-            .map(|j| {
-                let a = j / k;
-                std::array::from_fn(|x| {
-                    let p = positions[3 * a + x] + offsets[3 * j + x] * scaling[6 * a + x].exp();
-                    (f64::from(p) - f64::from(grid.origin[x])) / f64::from(grid.cell)
-                })
-            })
-            .collect();
-        let GrowthPlan { keep, grown } =
-            plan(&growth.stats, &growth.voxels, grid.depth, &neural, &growth.schedule, &mut self.rng);
-        let features = tensor_values(self.params[0].clone());
-        let mut added: [Vec<f32>; 4] = Default::default();
-        for g in &grown {
-            added[0].extend((0..f).map(|c| g.parents.iter().map(|&a| features[a * f + c]).fold(f32::MIN, f32::max)));
-            added[1].extend([(g.cell as f32 * grid.cell).ln(); 6]);
-            added[2].extend(std::iter::repeat_n(0.0, 3 * k));
-            added[3].extend(std::iter::repeat_n(INITIAL_MASK_LOGIT, k));
-        }
-        for (i, new_rows) in [0, 1, 2, MASK_LOGITS].into_iter().zip(&added) {
-            let zeros = vec![0.0; new_rows.len()];
-            self.params[i] = kept_and_added(&self.params[i], &keep, new_rows);
-            let (first, second) = &mut self.moments[i];
-            *first = kept_and_added(first, &keep, &zeros);
-            *second = kept_and_added(second, &keep, &zeros);
-        }
-        let new_positions: Vec<f32> = grown.iter().flat_map(|g| grid.position(g.voxel)).collect();
-        self.positions = kept_and_added(&self.positions, &keep, &new_positions);
-        let masks: Vec<bool> = keep.iter().flat_map(|&a| self.masks[a * k..(a + 1) * k].iter().copied()).collect();
-        self.masks = masks.into_iter().chain(std::iter::repeat_n(true, grown.len() * k)).collect();
-        growth.voxels = keep.iter().map(|&a| growth.voxels[a]).chain(grown.iter().map(|g| g.voxel)).collect();
-        let anchors = growth.voxels.len();
-        growth.totals.grown += grown.len();
-        growth.totals.pruned += n - keep.len();
-        growth.stats = AnchorStats::new(anchors, k);
-        self.shape[0] = anchors;
-        if let Some(lookup) = &self.context {
-            self.context = Some(ContextLookup::new(lookup.shape.clone(), &growth.voxels, grid.depth, &device));
-        }
     }
 
     pub fn device(&self) -> Device {

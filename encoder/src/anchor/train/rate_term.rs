@@ -1,0 +1,104 @@
+//! The rate side of anchor training: the mean bits per stored value under the factorized or
+//! the context model, and the quantization steps, learned per attribute group when asked.
+
+use burn::tensor::Tensor;
+
+use super::{AnchorTrainer, LOG_STEP_RANGE, PARAMETERS, RATE_MODEL};
+use crate::anchor::host::host_tensor;
+use crate::anchor::quantize::AnchorSteps;
+use crate::anchor::rate::factorized_bits;
+use crate::train::params::tensor_values;
+use pwgs_decoder::stream::anchor_context::predicted_values;
+
+impl AnchorTrainer {
+    /// Learns a factor on each group's quantization step (features, scaling, offsets) while the
+    /// rate term is on: the rate pulls steps up, the distortion of the noisy values down
+    /// (HAC's adaptive quantization, one factor per group for the whole scene, which the
+    /// stream's step fields hold). Call after [`Self::with_context`].
+    pub fn with_learned_steps(mut self) -> Self {
+        let factors = Tensor::zeros([1, 3], &self.positions.device());
+        self.moments.push((factors.zeros_like(), factors.zeros_like()));
+        self.learned_steps = Some(self.params.len());
+        self.params.push(factors);
+        self
+    }
+
+    /// The quantization steps the stream is written with: the base steps, times the learned
+    /// factors when there are any.
+    pub fn steps(&self) -> Option<AnchorSteps> {
+        let (base, _) = self.noise?;
+        let Some(i) = self.learned_steps else { return Some(base) };
+        let f = tensor_values(self.params[i].clone())
+            .iter()
+            .map(|&v| v.clamp(-LOG_STEP_RANGE, LOG_STEP_RANGE).exp())
+            .collect::<Vec<_>>();
+        Some(AnchorSteps {
+            feature: base.feature * f[0],
+            scaling: base.scaling * f[1],
+            offset: base.offset * f[2],
+            ..base
+        })
+    }
+
+    /// The three groups' steps for this step, as [1, 1] tensors: learned (with gradients) while
+    /// the rate term is on, else constants.
+    pub(super) fn step_tensors(&self, tracked: &[Tensor<2>]) -> Option<[Tensor<2>; 3]> {
+        let (base, _) = self.noise?;
+        let base = [base.feature, base.scaling, base.offset];
+        let device = self.positions.device();
+        Some(match (self.learned_steps, self.lambda()) {
+            (Some(i), Some(_)) => {
+                let factors = tracked[i].clone().clamp(-LOG_STEP_RANGE, LOG_STEP_RANGE).exp();
+                std::array::from_fn(|g| factors.clone().slice([0..1, g..g + 1]) * base[g])
+            }
+            _ => {
+                let now = self.steps().expect("noise is on");
+                let steps = [now.feature, now.scaling, now.offset];
+                std::array::from_fn(|g| host_tensor(&[steps[g]], [1, 1], &device).autodiff())
+            }
+        })
+    }
+
+    /// Mean bits per stored value: features and scaling of every anchor with an open mask,
+    /// offsets of every open mask (gated, so that their bits reach the masks), over all N x
+    /// (F + 6 + 3K) values.
+    pub(super) fn mean_bits(
+        &self,
+        attributes: &[Tensor<2>],
+        tracked: &[Tensor<2>],
+        steps: &[Tensor<2>; 3],
+        gate: Tensor<2>,
+        masks: &[bool],
+    ) -> Tensor<1> {
+        let [n, f, k] = self.shape;
+        let widths = [f, 6, 3 * k];
+        let values = predicted_values(f, k);
+        let context = self.context.as_ref().map(|lookup| lookup.outputs(&tracked[PARAMETERS..]));
+        // Mean and log scale of group j: per anchor from the context model (whose outputs are,
+        // per value, the mean in steps, then log2 of the scale in steps: SPEC.md section 12.7),
+        // else per channel.
+        let model = |j: usize| match &context {
+            Some(out) => {
+                let (start, w, step) = (widths[..j].iter().sum::<usize>(), widths[j], steps[j].clone());
+                let mean = out.clone().slice([0..n, start..start + w]) * step.clone();
+                let log2_scale = out.clone().slice([0..n, values + start..values + start + w]);
+                (mean, log2_scale * std::f32::consts::LN_2 + step.log())
+            }
+            None => (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone()),
+        };
+        let anchor_open: Vec<f32> = masks.chunks_exact(k).map(|m| f32::from(u8::from(m.iter().any(|&o| o)))).collect();
+        let anchor_open = host_tensor(&anchor_open, [n, 1], &self.positions.device()).autodiff();
+        let (mean, scale) = model(0);
+        let features = factorized_bits(attributes[0].clone(), mean, scale, steps[0].clone()).sum_dim(1);
+        let (mean, scale) = model(1);
+        let scaling = factorized_bits(attributes[1].clone(), mean, scale, steps[1].clone()).sum_dim(1);
+        let (mean, scale) = model(2);
+        let offsets = match &context {
+            Some(_) => factorized_bits(attributes[2].clone(), mean, scale, steps[2].clone()).reshape([n * k, 3]),
+            None => factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps[2].clone()),
+        };
+        let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
+        let total = ((features + scaling) * anchor_open + offsets).sum();
+        total / self.rated_values() as f32
+    }
+}
