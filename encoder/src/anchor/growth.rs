@@ -50,7 +50,7 @@ impl GrowthSchedule {
 
     /// Whether the step that has just finished `iteration` steps is followed by an event.
     pub fn is_event(&self, iteration: u32) -> bool {
-        iteration >= self.from && iteration <= self.until && iteration % self.every.max(1) == 0
+        iteration >= self.from && iteration <= self.until && iteration.is_multiple_of(self.every.max(1))
     }
 }
 
