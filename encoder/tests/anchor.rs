@@ -3,10 +3,11 @@
 //! rounded, shows it almost as well as the trained model.
 
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
-use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream;
+use pwgs_decoder::stream::plain::PositionGrid;
 use pwgs_encoder::anchor::context::{ContextLookup, default_shape};
 use pwgs_encoder::anchor::growth::GrowthSchedule;
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
@@ -14,15 +15,23 @@ use pwgs_encoder::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, qu
 use pwgs_encoder::anchor::train::AnchorTrainer;
 use pwgs_encoder::evaluate::{MeanScore, evaluate};
 
+/// A generated scene in `dir` and its initial anchor model (F = 8, K = 4, voxels of 5% of the
+/// scene's scale), with the grid the anchors sit on.
+fn anchor_scene(dir: &std::path::Path, options: &SyntheticOptions) -> (Dataset, AnchorModel, PositionGrid) {
+    generate(dir, options).unwrap();
+    let data = load_scene(dir, &LoadOptions::default()).unwrap();
+    let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel: 0.05 * data.normalization.scale };
+    let (initial, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    (data, initial, grid)
+}
+
+/// The scene most tests here train on: 16 views of 80 x 60.
+const SMALL: SyntheticOptions = SyntheticOptions { width: 80, height: 60, views: 16, seed: 4, points: 1500 };
+
 #[test]
 fn anchors_learn_the_generated_scene() {
     let tmp = tempfile::tempdir().unwrap();
-    let options = SyntheticOptions { width: 80, height: 60, views: 16, seed: 4, points: 1500 };
-    generate(tmp.path(), &options).unwrap();
-    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
-    let voxel = 0.05 * data.normalization.scale;
-    let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel };
-    let (initial, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    let (data, initial, grid) = anchor_scene(tmp.path(), &SMALL);
     let psnr = |model: &AnchorModel| {
         let scene = Scene {
             base: Base::Anchors(Box::new(model.clone())),
@@ -64,11 +73,7 @@ fn anchors_learn_the_generated_scene() {
 #[test]
 fn grown_anchors_train_and_code() {
     let tmp = tempfile::tempdir().unwrap();
-    let options = SyntheticOptions { width: 80, height: 60, views: 16, seed: 4, points: 1500 };
-    generate(tmp.path(), &options).unwrap();
-    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
-    let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel: 0.05 * data.normalization.scale };
-    let (initial, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    let (data, initial, grid) = anchor_scene(tmp.path(), &SMALL);
     let coords = grid_coordinates(&initial.positions, &grid).unwrap();
     let steps = AnchorSteps::default();
     let schedule = GrowthSchedule { from: 50, until: 150, every: 50, max_anchors: 2 * initial.len() };
@@ -122,10 +127,7 @@ fn grown_anchors_train_and_code() {
 fn learned_steps_follow_lambda() {
     let tmp = tempfile::tempdir().unwrap();
     let options = SyntheticOptions { width: 64, height: 48, views: 8, seed: 5, points: 600 };
-    generate(tmp.path(), &options).unwrap();
-    let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
-    let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel: 0.05 * data.normalization.scale };
-    let (initial, _) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+    let (data, initial, _) = anchor_scene(tmp.path(), &options);
     let base = AnchorSteps::default();
     let learned = |lambda: f32| {
         let mut trainer = AnchorTrainer::new(&initial, &data, 120, [0.0; 3], 0)
