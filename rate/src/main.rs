@@ -1,13 +1,14 @@
-//! `pwrate fit judgments.jsonl`: the Bayesian Elo of the methods a rating study compared.
+//! `pwrate serve STUDY --judgments FILE`: the rating page; `pwrate fit FILE`: the Bayesian
+//! Elo of the methods a rating study compared.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use pwgs_rate::chart::{Z95, elo_chart};
-use pwgs_rate::elo::fit;
-use pwgs_rate::judgments::{read, screen};
+use pwgs_rate::fit_study;
+use pwgs_rate::server::serve;
+use pwgs_rate::study::Study;
 
 #[derive(Parser)]
 #[command(name = "pwrate", version, about = "Human A/B ratings of renders and their Bayesian Elo")]
@@ -18,6 +19,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Serve the rating page of a study folder (gt/ plus one folder of renders per method) on
+    /// 127.0.0.1, appending each judgment to a file as it is made.
+    Serve {
+        study: PathBuf,
+        /// The judgments file (JSON lines; created, or appended to).
+        #[arg(long)]
+        judgments: PathBuf,
+        /// Port (0: any free one; the address is printed).
+        #[arg(long, default_value_t = 8017)]
+        port: u16,
+    },
     /// Fit Bayesian Elo to a judgments file (one JSON object per line), after screening raters
     /// by their golden questions.
     Fit {
@@ -35,32 +47,13 @@ enum Command {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    let Command::Fit { judgments, prior_elo, min_golden, chart } = cli.command;
-    let all = read(&judgments)?;
-    let screened = screen(&all, min_golden);
-    for (rater, (asked, right)) in &screened.golden {
-        let verdict = if screened.rejected.contains(rater) { "rejected" } else { "kept" };
-        println!("rater {rater}: {right}/{asked} golden questions right, {verdict}");
+    match cli.command {
+        Command::Serve { study, judgments, port } => serve(Study::open(&study)?, judgments, port),
+        Command::Fit { judgments, prior_elo, min_golden, chart } => {
+            print!("{}", fit_study(&judgments, prior_elo, min_golden, chart.as_deref())?);
+            Ok(())
+        }
     }
-    let f = fit(&screened.kept, prior_elo)?;
-    println!("{} judgments of {} fitted (prior sd {prior_elo} Elo)", f.judgments, all.len());
-    let mut order: Vec<usize> = (0..f.methods.len()).collect();
-    order.sort_by(|&a, &b| f.elo[b].total_cmp(&f.elo[a]));
-    println!("{:<24} {:>8} {:>18}", "method", "Elo", "95% interval");
-    for &i in &order {
-        let (e, half) = (f.elo[i], Z95 * f.sd(i));
-        println!("{:<24} {e:>8.1} {:>8.1} .. {:<8.1}", f.methods[i], e - half, e + half);
-    }
-    println!("P(row stronger than column):");
-    for &i in &order {
-        let cells: Vec<String> = order.iter().map(|&j| format!("{:.3}", f.probability_stronger(i, j))).collect();
-        println!("{:<24} {}", f.methods[i], cells.join(" "));
-    }
-    if let Some(path) = chart {
-        elo_chart(&f, "Bayesian Elo", &path)?;
-        println!("wrote {}", path.display());
-    }
-    Ok(())
 }
 
 fn main() -> ExitCode {

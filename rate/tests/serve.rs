@@ -1,0 +1,114 @@
+//! `pwrate serve` end to end over HTTP (no browser): the page, questions that belong to the
+//! study, images, judgments appended durably (a killed server keeps every acknowledged one) and
+//! refused when they do not belong to the study; then `pwrate fit` reads what was written.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Command, Stdio};
+
+/// A study of 2 views (96 x 64) with the ground truth and two methods.
+fn study(dir: &std::path::Path) {
+    for folder in ["gt", "blurry", "sharp"] {
+        std::fs::create_dir_all(dir.join(folder)).unwrap();
+        for (v, shade) in [("a.png", 40u8), ("b.png", 200)] {
+            let img = image::RgbImage::from_pixel(96, 64, image::Rgb([shade, shade, shade]));
+            img.save(dir.join(folder).join(v)).unwrap();
+        }
+    }
+}
+
+/// One HTTP/1.1 request; the status code and the body.
+fn request(port: u16, method: &str, path: &str, body: &str) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    write!(
+        s,
+        "{method} {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    )
+    .unwrap();
+    let mut raw = Vec::new();
+    s.read_to_end(&mut raw).unwrap();
+    let split = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("a header");
+    let head = String::from_utf8_lossy(&raw[..split]).to_string();
+    let status = head.split(' ').nth(1).unwrap().parse().unwrap();
+    (status, raw[split + 4..].to_vec())
+}
+
+#[test]
+fn the_server_asks_serves_and_keeps_judgments() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("study");
+    study(&root);
+    let file = tmp.path().join("judgments.jsonl");
+    let mut server = Command::new(env!("CARGO_BIN_EXE_pwrate"))
+        .args(["serve", root.to_str().unwrap(), "--judgments", file.to_str().unwrap(), "--port", "0"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(server.stdout.take().unwrap()).read_line(&mut line).unwrap();
+    let port: u16 = line.trim().rsplit(':').next().unwrap().parse().unwrap_or_else(|_| panic!("{line}"));
+
+    let (status, page) = request(port, "GET", "/", "");
+    assert_eq!(status, 200);
+    assert!(String::from_utf8_lossy(&page).contains("id=\"pick-a\""));
+    let mut golden = 0;
+    let mut saved = 0;
+    for _ in 0..60 {
+        let (status, body) = request(port, "GET", "/api/next", "");
+        assert_eq!(status, 200);
+        let q: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        let (left, right) = (q["left"].as_str().unwrap(), q["right"].as_str().unwrap());
+        assert_ne!(left, right);
+        assert_eq!(q["size"], 64, "crops are 512 or the view's shorter side");
+        assert!(q["crop"][0].as_u64().unwrap() <= 32 && q["crop"][1] == 0);
+        golden += usize::from(left == "ground-truth" || right == "ground-truth");
+        let view = q["view"].as_str().unwrap();
+        let (status, png) = request(port, "GET", &format!("/image/{left}/{view}"), "");
+        assert_eq!((status, &png[1..4]), (200, &b"PNG"[..]));
+        // The tester knows the ground truth when shown it, and prefers the sharp method.
+        let winner = [left, right].into_iter().find(|&m| m == "ground-truth" || m == "sharp").unwrap_or(left);
+        let winner = if left == "ground-truth" || right == "ground-truth" { "ground-truth" } else { winner };
+        let judgment = serde_json::json!({ "rater": "tester", "view": view, "crop": q["crop"], "left": left,
+                                           "right": right, "winner": winner });
+        assert_eq!(request(port, "POST", "/api/judgment", &judgment.to_string()).0, 204);
+        saved += 1;
+    }
+    assert!(golden > 0 && golden < 30, "about one question in ten is golden: {golden}");
+    // What does not belong to the study is refused, and nothing outside it is served.
+    let stray = serde_json::json!({ "rater": "tester", "view": "a.png", "crop": [0, 0], "left": "sharp",
+                                    "right": "blurry", "winner": "other" });
+    assert_eq!(request(port, "POST", "/api/judgment", &stray.to_string()).0, 400);
+    let outside = serde_json::json!({ "rater": "tester", "view": "a.png", "crop": [40, 0], "left": "sharp",
+                                      "right": "blurry", "winner": "sharp" });
+    assert_eq!(request(port, "POST", "/api/judgment", &outside.to_string()).0, 400);
+    assert_eq!(request(port, "GET", "/image/gt/..%2F..%2Fjudgments.jsonl", "").0, 404);
+    assert_eq!(request(port, "GET", "/image/nobody/a.png", "").0, 404);
+
+    // Killed without warning, the server has kept every acknowledged judgment.
+    server.kill().unwrap();
+    server.wait().unwrap();
+    let lines = pwgs_rate::judgments::read(&file).unwrap();
+    assert_eq!(lines.len(), saved);
+    let out = Command::new(env!("CARGO_BIN_EXE_pwrate")).args(["fit", file.to_str().unwrap()]).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.lines().nth(3).unwrap_or("").starts_with("sharp"), "the tester preferred sharp: {stdout}");
+}
+
+#[test]
+fn a_study_without_ground_truth_or_methods_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |dir: &std::path::Path| {
+        Command::new(env!("CARGO_BIN_EXE_pwrate"))
+            .args(["serve", dir.to_str().unwrap(), "--judgments", "/dev/null", "--port", "0"])
+            .output()
+            .unwrap()
+    };
+    let out = run(tmp.path());
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("gt/"));
+    study(tmp.path());
+    std::fs::remove_file(tmp.path().join("sharp/b.png")).unwrap();
+    let out = run(tmp.path());
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("sharp lacks b.png"));
+}
