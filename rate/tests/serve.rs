@@ -2,37 +2,11 @@
 //! study, images, judgments appended durably (a killed server keeps every acknowledged one) and
 //! refused when they do not belong to the study; then `pwrate fit` reads what was written.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::TcpStream;
-use std::process::{Command, Stdio};
+mod common;
 
-/// A study of 2 views (96 x 64) with the ground truth and two methods.
-fn study(dir: &std::path::Path) {
-    for folder in ["gt", "blurry", "sharp"] {
-        std::fs::create_dir_all(dir.join(folder)).unwrap();
-        for (v, shade) in [("a.png", 40u8), ("b.png", 200)] {
-            let img = image::RgbImage::from_pixel(96, 64, image::Rgb([shade, shade, shade]));
-            img.save(dir.join(folder).join(v)).unwrap();
-        }
-    }
-}
+use std::process::Command;
 
-/// One HTTP/1.1 request; the status code and the body.
-fn request(port: u16, method: &str, path: &str, body: &str) -> (u16, Vec<u8>) {
-    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    write!(
-        s,
-        "{method} {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n{body}",
-        body.len()
-    )
-    .unwrap();
-    let mut raw = Vec::new();
-    s.read_to_end(&mut raw).unwrap();
-    let split = raw.windows(4).position(|w| w == b"\r\n\r\n").expect("a header");
-    let head = String::from_utf8_lossy(&raw[..split]).to_string();
-    let status = head.split(' ').nth(1).unwrap().parse().unwrap();
-    (status, raw[split + 4..].to_vec())
-}
+use common::{request, start_server, study};
 
 #[test]
 fn the_server_asks_serves_and_keeps_judgments() {
@@ -40,15 +14,7 @@ fn the_server_asks_serves_and_keeps_judgments() {
     let root = tmp.path().join("study");
     study(&root);
     let file = tmp.path().join("judgments.jsonl");
-    let mut server = Command::new(env!("CARGO_BIN_EXE_pwrate"))
-        .args(["serve", root.to_str().unwrap(), "--judgments", file.to_str().unwrap(), "--port", "0"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(server.stdout.take().unwrap()).read_line(&mut line).unwrap();
-    let port: u16 = line.trim().rsplit(':').next().unwrap().parse().unwrap_or_else(|_| panic!("{line}"));
-
+    let (mut server, port) = start_server(&root, &file);
     let (status, page) = request(port, "GET", "/", "");
     assert_eq!(status, 200);
     assert!(String::from_utf8_lossy(&page).contains("id=\"pick-a\""));
