@@ -160,9 +160,11 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let (eval, report) = (dir("eval"), dir("r.json"));
     args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "--eval", &eval, "--report", &report]);
+    args.push("--fixed-anchor-steps");
     let out = pwenc(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+    assert_eq!(report["stream"]["feature_step"].as_f64(), Some(0.125), "--fixed-anchor-steps keeps the base step");
     assert_eq!((report["base"].as_str(), report["iterations"].as_u64()), (Some("anchor"), Some(20)));
     assert!(report["anchors"].as_u64().unwrap() > 0);
     assert!(report["mean"]["psnr"].as_f64().unwrap() > 5.0);
@@ -173,7 +175,7 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let report2 = dir("r2.json");
     args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "-o", &stream_path, "--report", &report2]);
-    args.push("--learn-anchor-steps");
+
     let out = pwenc(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let bytes = std::fs::read(&stream_path).unwrap();
@@ -186,7 +188,7 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let stream::Content::Anchors(content) = &decoded.content else { panic!("an anchor stream") };
     assert!(content.context.is_some(), "no ACTX section in the default stream");
     assert!(report["context_grid_bytes"].as_f64().is_some_and(|b| b > 0.0), "{report}");
-    // --learn-anchor-steps: the stream holds the learned steps, no longer the base ones.
+    // The steps are learned by default: the stream holds them, no longer the base ones.
     let step = report["stream"]["feature_step"].as_f64().unwrap();
     assert!(step != 0.125 && step > 0.0, "{step}");
     let stored = content.feature_step;
