@@ -22,7 +22,13 @@ enum Command {
     /// Serve the rating page of a study folder (gt/ plus one folder of renders per method) on
     /// 127.0.0.1, appending each judgment to a file as it is made.
     Serve {
-        study: PathBuf,
+        /// A study folder: gt/ and one folder of renders per method.
+        #[arg(required_unless_present = "run", conflicts_with = "run")]
+        study: Option<PathBuf>,
+        /// Instead of a study folder, a run's eval folder (`pwenc --eval DIR`) as NAME=DIR, two
+        /// or more: rated against the first run's DIR/gt.
+        #[arg(long, value_parser = parse_run)]
+        run: Vec<(String, PathBuf)>,
         /// The judgments file (JSON lines; created, or appended to).
         #[arg(long)]
         judgments: PathBuf,
@@ -46,9 +52,22 @@ enum Command {
     },
 }
 
+fn parse_run(s: &str) -> Result<(String, PathBuf), String> {
+    match s.split_once('=') {
+        Some((name, dir)) if !name.is_empty() && !dir.is_empty() => Ok((name.to_string(), PathBuf::from(dir))),
+        _ => Err(format!("`{s}`: expected NAME=EVAL_DIR")),
+    }
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Serve { study, judgments, port } => serve(Study::open(&study)?, judgments, port),
+        Command::Serve { study, run, judgments, port } => {
+            let study = match study {
+                Some(folder) => Study::open(&folder)?,
+                None => Study::of_runs(&run)?,
+            };
+            serve(study, judgments, port)
+        }
         Command::Fit { judgments, prior_elo, min_golden, chart } => {
             print!("{}", fit_study(&judgments, prior_elo, min_golden, chart.as_deref())?);
             Ok(())

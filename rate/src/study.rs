@@ -1,7 +1,8 @@
-//! A rating study on disk: `STUDY/gt/` holds the ground truth (PNG per view) and every other
-//! folder of `STUDY/` is a method holding a render of each of those views under the same name,
-//! as `pwenc --eval DIR` writes them (its own `gt/` inside is ignored). Copying or linking two
-//! runs' eval folders beside one `gt/` makes a study.
+//! A rating study on disk: the ground truth (a PNG per view) and, per method, a render of each
+//! of those views under the same name. Either a study folder (`STUDY/gt/` and one folder per
+//! method beside it), or the eval folders of runs as `pwenc --eval DIR` writes them (renders in
+//! `DIR`, the ground truth as training saw it in `DIR/gt/`), rated against the first run's
+//! ground truth: any two runs of a scene can be rated as they are.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -16,11 +17,14 @@ pub const CROP: u32 = 512;
 /// The views and methods of a study, checked once at start.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Study {
-    pub root: PathBuf,
+    /// The ground truth's folder.
+    pub truth: PathBuf,
     /// View file names with their size, sorted.
     pub views: BTreeMap<String, [u32; 2]>,
-    /// Method folder names, sorted.
+    /// Method names, sorted.
     pub methods: Vec<String>,
+    /// Each method's folder, in the order of `methods`.
+    pub folders: Vec<PathBuf>,
 }
 
 fn pngs(dir: &Path) -> Result<Vec<String>> {
@@ -37,42 +41,49 @@ fn pngs(dir: &Path) -> Result<Vec<String>> {
 }
 
 impl Study {
-    /// Scans `root`: every method must hold every ground-truth view, at the same size.
+    /// A study folder: `root/gt/` and every other folder of `root` a method.
     pub fn open(root: &Path) -> Result<Self> {
-        let gt = root.join("gt");
-        let mut views = BTreeMap::new();
-        for name in pngs(&gt).with_context(|| format!("{} has no gt/ folder of ground-truth PNGs", root.display()))? {
-            let size = image::image_dimensions(gt.join(&name)).with_context(|| format!("cannot read gt/{name}"))?;
-            views.insert(name, [size.0, size.1]);
-        }
-        ensure!(!views.is_empty(), "{} has no ground-truth views", gt.display());
         let mut methods = Vec::new();
         for entry in std::fs::read_dir(root).with_context(|| format!("cannot read {}", root.display()))? {
             let entry = entry?;
             let name = entry.file_name().to_string_lossy().into_owned();
-            if !entry.path().is_dir() || name == "gt" {
-                continue;
+            if entry.path().is_dir() && name != "gt" {
+                methods.push((name, entry.path()));
             }
-            if name == GROUND_TRUTH {
-                bail!("a method folder may not be named `{GROUND_TRUTH}`: golden questions use that name");
-            }
-            for (view, size) in &views {
-                let path = entry.path().join(view);
-                let got = image::image_dimensions(&path).with_context(|| format!("method {name} lacks {view}"))?;
-                ensure!(
-                    [got.0, got.1] == *size,
-                    "{name}/{view} is {}x{}, the ground truth {}x{}",
-                    got.0,
-                    got.1,
-                    size[0],
-                    size[1]
-                );
-            }
-            methods.push(name);
         }
+        Self::new(root.join("gt"), methods)
+    }
+
+    /// Runs' eval folders, named: rated against the first one's `gt/`.
+    pub fn of_runs(runs: &[(String, PathBuf)]) -> Result<Self> {
+        let Some((_, first)) = runs.first() else { bail!("no runs to rate") };
+        Self::new(first.join("gt"), runs.to_vec())
+    }
+
+    /// Checks that every method holds every ground-truth view, at the same size.
+    fn new(truth: PathBuf, mut methods: Vec<(String, PathBuf)>) -> Result<Self> {
+        let mut views = BTreeMap::new();
+        let names =
+            pngs(&truth).with_context(|| format!("no gt/ folder of ground-truth PNGs at {}", truth.display()))?;
+        for name in names {
+            let size = image::image_dimensions(truth.join(&name)).with_context(|| format!("cannot read gt/{name}"))?;
+            views.insert(name, [size.0, size.1]);
+        }
+        ensure!(!views.is_empty(), "{} has no ground-truth views", truth.display());
         methods.sort();
-        ensure!(methods.len() >= 2, "a study needs two methods or more beside gt/ ({} found)", methods.len());
-        Ok(Self { root: root.to_path_buf(), views, methods })
+        for (i, (name, folder)) in methods.iter().enumerate() {
+            ensure!(name != GROUND_TRUTH, "a method may not be named `{GROUND_TRUTH}`: golden questions use that name");
+            ensure!(i == 0 || methods[i - 1].0 != *name, "two methods are named {name}");
+            for (view, size) in &views {
+                let got = image::image_dimensions(folder.join(view))
+                    .with_context(|| format!("method {name} lacks {view}"))?;
+                let [w, h] = *size;
+                ensure!([got.0, got.1] == *size, "{name}/{view} is {}x{}, the ground truth {w}x{h}", got.0, got.1);
+            }
+        }
+        ensure!(methods.len() >= 2, "a study needs two methods or more ({} found)", methods.len());
+        let (methods, folders) = methods.into_iter().unzip();
+        Ok(Self { truth, views, methods, folders })
     }
 
     /// The side of the square crops of a view: 512, or the view's shorter side.
@@ -86,9 +97,8 @@ impl Study {
             return None;
         }
         match method {
-            GROUND_TRUTH => Some(self.root.join("gt").join(view)),
-            m if self.methods.iter().any(|x| x == m) => Some(self.root.join(m).join(view)),
-            _ => None,
+            GROUND_TRUTH => Some(self.truth.join(view)),
+            m => self.methods.iter().position(|x| x == m).map(|i| self.folders[i].join(view)),
         }
     }
 }

@@ -78,3 +78,34 @@ fn a_study_without_ground_truth_or_methods_is_refused() {
     let out = run(tmp.path());
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("sharp lacks b.png"));
 }
+
+/// Two runs' eval folders (renders, and the ground truth in gt/) are a study as they are.
+#[test]
+fn runs_eval_folders_are_rated_as_they_are() {
+    let tmp = tempfile::tempdir().unwrap();
+    study(tmp.path());
+    // Eval folders: each run's renders, with the ground truth inside as pwenc --eval writes it.
+    for run in ["blurry", "sharp"] {
+        let gt = tmp.path().join(run).join("gt");
+        std::fs::create_dir_all(&gt).unwrap();
+        for v in ["a.png", "b.png"] {
+            std::fs::copy(tmp.path().join("gt").join(v), gt.join(v)).unwrap();
+        }
+    }
+    let runs = [("old".to_string(), tmp.path().join("blurry")), ("new".to_string(), tmp.path().join("sharp"))];
+    let s = pwgs_rate::study::Study::of_runs(&runs).unwrap();
+    assert_eq!(s.methods, ["new", "old"]);
+    assert_eq!(s.image("old", "a.png").unwrap(), tmp.path().join("blurry/a.png"));
+    assert_eq!(s.image("ground-truth", "b.png").unwrap(), tmp.path().join("blurry/gt/b.png"));
+    assert!(s.image("old", "c.png").is_none() && s.image("gt", "a.png").is_none());
+    let out = Command::new(env!("CARGO_BIN_EXE_pwrate"))
+        .args(["serve", "--judgments", "/dev/null", "--run", "only=x"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success(), "one run is not a study");
+    let out = Command::new(env!("CARGO_BIN_EXE_pwrate"))
+        .args(["serve", "--judgments", "/dev/null", "--run", "x"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("NAME=EVAL_DIR"));
+}
