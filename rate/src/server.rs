@@ -61,20 +61,20 @@ async fn page() -> Html<&'static str> {
 
 async fn next(State(state): State<Arc<AppState>>) -> Json<Question> {
     let study = &state.study;
-    let views: Vec<&String> = study.views.keys().collect();
-    let view = views[state.random(views.len() as u64) as usize].clone();
-    let [w, h] = study.views[&view];
-    let size = study.crop_side(&view).expect("a study view");
+    let pick = state.random(study.views.len() as u64) as usize;
+    let (view, &[w, h]) = study.views.iter().nth(pick).expect("a study has views");
+    let size = study.crop_side(view).expect("a study view");
     let crop = [state.random(u64::from(w - size) + 1) as u32, state.random(u64::from(h - size) + 1) as u32];
-    let m = study.methods.len() as u64;
-    let first = study.methods[state.random(m) as usize].clone();
+    let m = study.methods.len();
+    let i = state.random(m as u64) as usize;
+    let first = study.methods[i].clone();
     let second = if state.random(GOLDEN_EVERY) == 0 {
         GROUND_TRUTH.to_string()
     } else {
-        let offset = 1 + state.random(m - 1) as usize;
-        let i = study.methods.iter().position(|x| *x == first).expect("listed");
-        study.methods[(i + offset) % study.methods.len()].clone()
+        // Any other method: a step of 1 to m - 1 from the first.
+        study.methods[(i + 1 + state.random(m as u64 - 1) as usize) % m].clone()
     };
+    let view = view.clone();
     let (left, right) = if state.random(2) == 0 { (first, second) } else { (second, first) };
     Json(Question { view, crop, size, left, right })
 }
