@@ -19,8 +19,8 @@ pwenc=${PWENC:-${CARGO_TARGET_DIR:-target}/release/pwenc}
 weights=(--eval-metrics lpips,dists,wd --eval-wd-log2-sigma 3 --weights ../shared/weights)
 scene_args() {
     case $1 in
-        fern) echo "../shared/scenes/fern --downscale 8 --max-gaussians 33500" ;;
-        fox) echo "../shared/scenes/fox --downscale 2 --max-gaussians 40000" ;;
+        fern) echo "../shared/scenes/fern --base 3dgs --downscale 8 --max-gaussians 33500" ;;
+        fox) echo "../shared/scenes/fox --base 3dgs --downscale 2 --max-gaussians 40000" ;;
         *) echo "unknown scene $1 (fern or fox)" >&2; exit 2 ;;
     esac
 }
@@ -31,7 +31,7 @@ case $mode in
         scene=$1 dir=$2
         mkdir -p "$dir"
         # shellcheck disable=SC2046
-        "$pwenc" $(scene_args "$scene") --iters 1000 --position-lr "1.6e-4,$(split_rate "$scene")" \
+        "$pwenc" $(scene_args "$scene") --no-wrapper --iters 1000 --position-lr "1.6e-4,$(split_rate "$scene")" \
             --export-ply "$dir/${scene}_s1.ply" -o "$dir/${scene}_s1.pwb" > "$dir/${scene}_s1.log" 2>&1
         ;;
     row)
@@ -40,7 +40,7 @@ case $mode in
         start=$(date +%s)
         # shellcheck disable=SC2046
         "$pwenc" $(scene_args "$scene") --init-ply "$dir/${scene}_s1.ply" --iters 0 \
-            --position-lr "$(split_rate "$scene"),1.6e-6" --target-bytes "$(target "$scene")" --wrapper "$@" \
+            --position-lr "$(split_rate "$scene"),1.6e-6" --target-bytes "$(target "$scene")" "$@" \
             -o "$dir/$name.pwb" --eval "$dir/${name}_eval" --report "$dir/$name.json" "${weights[@]}" \
             > "$dir/$name.log" 2>&1
         echo "wall $(( $(date +%s) - start )) s" >> "$dir/$name.log"

@@ -156,7 +156,8 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let pwenc = |args: &[&str]| std::process::Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().unwrap();
     let out = pwenc(&["generate-scene", &dir("scene"), "--width", "48", "--height", "36", "--views", "9"]);
     assert!(out.status.success());
-    let common = [dir("scene"), "--base".into(), "anchor".into(), "--iters".into(), "20".into()];
+    // The anchor base is the default.
+    let common = [dir("scene"), "--no-wrapper".into(), "--iters".into(), "20".into()];
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let (eval, report) = (dir("eval"), dir("r.json"));
     args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "--eval", &eval, "--report", &report]);
@@ -212,7 +213,7 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
 }
 
 /// The perceptual wrapper trains on the anchor base as on the plain one: the stream carries it
-/// and its decoded renders differ from the base's.
+/// and its decoded renders differ from the base's. Both are the default: no option names them.
 #[test]
 fn pwenc_trains_the_wrapper_on_anchors() {
     let tmp = tempfile::tempdir().unwrap();
@@ -223,15 +224,12 @@ fn pwenc_trains_the_wrapper_on_anchors() {
     let (scene, stream, report) = (dir("scene"), dir("s.pwb"), dir("r.json"));
     let args = [
         scene.as_str(),
-        "--base",
-        "anchor",
         "--iters",
         "10",
         "--anchor-features",
         "6",
         "--anchor-offsets",
         "3",
-        "--wrapper",
         "--wd-features",
         "pixels",
         "--wd-crop",

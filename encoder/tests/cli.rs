@@ -14,6 +14,9 @@ fn trains_evaluates_and_writes_outputs() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let out = pwenc(&[
         &dir("scene"),
+        "--base",
+        "3dgs",
+        "--no-wrapper",
         "--iters",
         "30",
         "--export-ply",
@@ -38,11 +41,13 @@ fn trains_evaluates_and_writes_outputs() {
     let model = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("model.ply"))).unwrap();
     assert_eq!(model.gaussians.len() as u64, report["training"]["gaussians"].as_u64().unwrap());
     // Resuming from the exported model works.
-    let out = pwenc(&[&dir("scene"), "--iters", "5", "--init-ply", &dir("model.ply")]);
+    let out =
+        pwenc(&[&dir("scene"), "--base", "3dgs", "--no-wrapper", "--iters", "5", "--init-ply", &dir("model.ply")]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
 
     // A cap below the SfM cloud's size bounds the model from the start, and says so.
-    let out = pwenc(&[&dir("scene"), "--iters", "3", "--max-gaussians", "40", "--export-ply", &dir("capped.ply")]);
+    let capped = ["--iters", "3", "--max-gaussians", "40", "--export-ply", &dir("capped.ply")];
+    let out = pwenc(&[&[dir("scene").as_str(), "--base", "3dgs", "--no-wrapper"][..], &capped[..]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("initialization: 40 of the "), "{stdout}");
@@ -63,7 +68,7 @@ fn bad_input_is_a_clear_error() {
         (vec![tmp.path().to_str().unwrap(), "--background", "purple"], "purple"),
         (vec![scene, "--position-lr", "1e-4"], "two positive rates"),
         (vec![tmp.path().to_str().unwrap()], "no supported scene"),
-        (vec![scene, "--init-ply", missing.to_str().unwrap()], "missing"),
+        (vec![scene, "--base", "3dgs", "--init-ply", missing.to_str().unwrap()], "missing"),
         (vec![scene, "--downscale", "0"], "downscale"),
     ] {
         let out = pwenc(&args);
@@ -158,4 +163,31 @@ fn compresses_an_imported_ply() {
     let out = pwenc(&["--from", &path("broken.spz"), "-o", &path("broken.pwb")]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("broken.spz"));
     assert!(!std::path::Path::new(&path("broken.pwb")).exists());
+}
+
+#[test]
+fn an_option_the_job_would_ignore_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("scene");
+    let scene = scene.to_str().unwrap();
+    assert!(pwenc(&["generate-scene", scene, "--width", "16", "--height", "12", "--views", "3"]).status.success());
+    for (args, needle) in [
+        // The default base is the anchor base, which plain-only options would not reach.
+        (vec![scene, "--max-gaussians", "40"], "--max-gaussians applies to the plain base"),
+        (vec![scene, "--no-wrapper", "--target-bytes", "9000", "-o", "x.pwb"], "--target-bytes applies to the plain"),
+        (vec![scene, "--base", "anchor", "--quality", "3"], "--quality applies to the plain base"),
+        (vec![scene, "--base", "3dgs", "--lambda", "0.01"], "--lambda applies to the anchor base"),
+        (vec![scene, "--base", "3dgs", "--anchor-growth"], "--anchor-growth applies to the anchor base"),
+        (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--iters", "9"], "--iters applies to training on a scene"),
+        (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--base", "anchor"], "--base applies to training"),
+        (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--wrapper"], "--wrapper applies to training"),
+        (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--wrapper-lr", "0.1"], "--wrapper-lr applies to training"),
+        (vec![scene, "--no-wrapper", "--wrapper-width", "8"], "--wrapper-width"),
+    ] {
+        let out = pwenc(&args);
+        let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+        assert!(!out.status.success(), "{args:?} should fail");
+        assert!(stderr.contains(needle), "{args:?}: `{stderr}` should mention `{needle}`");
+        assert!(!stdout.contains("iteration"), "{args:?} trained before failing: {stdout}");
+    }
 }

@@ -33,7 +33,9 @@ fn eval_reports_perceptual_metrics_per_view_and_their_mean() {
     let pwenc = env!("CARGO_BIN_EXE_pwenc");
     success(run(pwenc, &["generate-scene", &dir("scene"), "--width", "64", "--height", "64", "--views", "9"]));
     let metrics = ["--eval-metrics", "lpips,dists,wd", "--eval-wd-log2-sigma", "3"];
-    let mut args = vec![dir("scene"), "--iters".into(), "5".into(), "--eval".into(), dir("eval")];
+    let mut args =
+        vec![dir("scene"), "--base".into(), "3dgs".into(), "--no-wrapper".into(), "--iters".into(), "5".into()];
+    args.extend(["--eval".into(), dir("eval")]);
     args.extend(["--weights".into(), weights.to_str().unwrap().into(), "--report".into(), dir("r.json")]);
     args.extend(metrics.iter().map(|s| s.to_string()));
     let out = success(run(pwenc, &args.iter().map(String::as_str).collect::<Vec<_>>()));

@@ -40,7 +40,8 @@ fn decoder_shows_what_the_encoder_evaluated() {
         &dir("scene"),
         "--iters",
         "20",
-        "--wrapper",
+        "--base",
+        "3dgs",
         "--wrapper-crops-per-view",
         "3",
         "--wrapper-min-steps",
@@ -95,7 +96,8 @@ fn ablations_and_bad_wrapper_options() {
         dir("scene"),
         "--iters".into(),
         "4".into(),
-        "--wrapper".into(),
+        "--base".into(),
+        "3dgs".into(),
         "--wrapper-crops-per-view".into(),
         "1".into(),
         "--wrapper-min-steps".into(),
@@ -135,15 +137,18 @@ fn ablations_and_bad_wrapper_options() {
     bad(&["--wd-features", "pixels", "--wd-log2-sigma-map", "/nonexistent.png"], "nonexistent");
     bad(&["--weights", "/nonexistent"], "VGG16");
 
-    // Settings that stage 2 cannot use are refused before stage 1 trains: no progress line of
-    // a 200-iteration run's first half comes before the error.
+    // Settings that stage 2 cannot use are refused before stage 1 trains (on the default
+    // anchor base, with the wrapper by default): no progress line comes before the error.
     let early = |scene: &str, extra: &[&str], needle: &str| {
-        let mut args = vec![scene, "--iters", "200", "--wrapper"];
+        let mut args = vec![scene, "--iters", "200"];
         args.extend(extra);
         let stderr = fails(&args, needle);
-        assert!(!stderr.contains("iteration 100/200"), "{extra:?} failed only after stage 1: {stderr}");
+        assert!(!stderr.contains("iteration 100/"), "{extra:?} failed only after stage 1: {stderr}");
+        stderr
     };
-    early(&dir("scene"), &["--weights", &empty], "VGG16");
+    // Without the weights, the default run says how to get them, or how to go without.
+    let stderr = early(&dir("scene"), &["--weights", &empty], "VGG16");
+    assert!(stderr.contains("pwenc fetch-weights") && stderr.contains("--no-wrapper"), "{stderr}");
     success(pwenc(&["generate-scene", &dir("small"), "--width", "48", "--height", "48", "--views", "5"]));
     early(&dir("small"), &["--wd-features", "pixels", "--wd-crop", "64"], "at least 61x61");
 }

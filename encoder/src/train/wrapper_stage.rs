@@ -157,7 +157,10 @@ impl WrapperTraining {
         self.log2_sigma.validate().map_err(anyhow::Error::msg)?;
         Ok(match &self.features {
             WdFeatures::Vgg(dirs) => VggWasserstein::load(dirs, device)
-                .context("WD needs the VGG16 weights (run `pwenc fetch-weights`, or pass --weights DIR)")?,
+                .context(
+                "the perceptual wrapper's WD needs the VGG16 weights: run `pwenc fetch-weights` (or pass --weights DIR), \
+                 or train the base alone with --no-wrapper",
+            )?,
             WdFeatures::Pixels => VggWasserstein::pixels_only(),
         })
     }

