@@ -251,7 +251,7 @@ fn flip_bits(bytes: &[u8], count: usize, seed: u64) {
 /// whose means spread over tens of units and whose scales are all 1 unit.
 fn random_context(seed: u64) -> QuantizedContext {
     let mut rng = SplitMix64(seed);
-    let shape = ContextGridShape { levels: vec![1, 2, 4], table_log2: 6, channels: 2 };
+    let shape = ContextGridShape { levels: vec![1, 2, 4], planes: vec![3], table_log2: 6, channels: 2 };
     let signs = (0..shape.entries(6) * 2).map(|_| rng.next_u64() & 1 == 1).collect();
     let values = anchor_context::predicted_values(5, 3);
     let mut mlp =
@@ -309,10 +309,13 @@ fn corrupt_context_sections_are_named() {
     let cases: Vec<(Vec<u8>, &str, &str)> = vec![
         (context(&|p| p[0] = 0), "ACTX", "levels"),
         (context(&|p| p[1] = 0), "ACTX", "level"),
-        (context(&|p| p[4] = 3), "ACTX", "table log2"),
-        (context(&|p| p[5] = 9), "ACTX", "channels"),
+        // After the 3 levels: 1 plane level (r = 3), then T and C.
+        (context(&|p| p[4] = 17), "ACTX", "plane levels"),
+        (context(&|p| p[5] = 25), "ACTX", "plane level"),
+        (context(&|p| p[6] = 3), "ACTX", "table log2"),
+        (context(&|p| p[7] = 9), "ACTX", "channels"),
         // A dense finest level of 65^3 entries: far more grid than the stream's bytes allow.
-        (context(&|p| (p[3], p[4]) = (20, 22)), "ACTX", "exceeds the stream's length"),
+        (context(&|p| (p[3], p[6]) = (20, 22)), "ACTX", "exceeds the stream's length"),
         (context(&|p| p.truncate(p.len() / 2)), "ACTX", "coded data"),
         (with_payload(&bytes, anchor::SCALING, |p| p.truncate(6)), "ASCL", "coded data"),
     ];

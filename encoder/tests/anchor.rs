@@ -8,7 +8,7 @@ use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream;
 use pwgs_decoder::stream::plain::PositionGrid;
-use pwgs_encoder::anchor::context::{ContextLookup, default_shape};
+use pwgs_encoder::anchor::context::{ContextLookup, context_shape};
 use pwgs_encoder::anchor::growth::GrowthSchedule;
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
 use pwgs_encoder::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
@@ -78,7 +78,8 @@ fn grown_anchors_train_and_code() {
     let steps = AnchorSteps::default();
     let schedule = GrowthSchedule { from: 50, until: 150, every: 50, max_anchors: 2 * initial.len() };
     let trainer = AnchorTrainer::new(&initial, &data, 200, [0.0; 3], 0).unwrap();
-    let lookup = ContextLookup::new(default_shape(), &coords, grid.depth, &trainer.device());
+    // With 2D planes, so that they train, code and decode too.
+    let lookup = ContextLookup::new(context_shape(vec![6, 8]), &coords, grid.depth, &trainer.device());
     let mut trainer = trainer
         .with_quantization_noise(steps, 20)
         .with_rate(0.002, 60)
@@ -176,6 +177,7 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let report2 = dir("r2.json");
     args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "-o", &stream_path, "--report", &report2]);
+    args.extend(["--context-planes", "4,6"]);
 
     let out = pwenc(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -187,7 +189,8 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     assert_eq!(decoded.header.base, stream::header::BaseKind::Anchors);
     // The context model codes the attributes by default, and its grid's size is reported.
     let stream::Content::Anchors(content) = &decoded.content else { panic!("an anchor stream") };
-    assert!(content.context.is_some(), "no ACTX section in the default stream");
+    let context = content.context.as_ref().expect("no ACTX section in the default stream");
+    assert_eq!(context.shape.planes, vec![4, 6], "--context-planes adds 2D planes");
     assert!(report["context_grid_bytes"].as_f64().is_some_and(|b| b > 0.0), "{report}");
     // The steps are learned by default: the stream holds them, no longer the base ones.
     let step = report["stream"]["feature_step"].as_f64().unwrap();

@@ -93,7 +93,7 @@ pub fn encode(content: &QuantizedAnchors) -> Vec<u8> {
 /// tables and escapes.
 pub fn with_context(mut content: QuantizedAnchors, seed: u64) -> QuantizedAnchors {
     let mut draws = Draws::new(seed);
-    let shape = ContextGridShape { levels: vec![1, 3, 5], table_log2: 7, channels: 2 };
+    let shape = ContextGridShape { levels: vec![1, 3, 5], planes: vec![2, 6], table_log2: 7, channels: 2 };
     let signs = (0..shape.entries(content.grid.depth) * 2).map(|_| draws.i32([0, 1]) == 1).collect();
     let (inputs, hidden) = (shape.context_len(), 6);
     let outputs = 2 * anchor_context::predicted_values(FEATURES, OFFSETS);
@@ -193,9 +193,16 @@ pub fn refusals() -> Vec<Refusal> {
             "anchor-context-grid-bound",
             "S12.7-context",
             "section 'ACTX': a grid of",
-            "ACTX's levels made dense (27 + 9^3 + 33^3 entries) with 8 channels: more than 64 grid bits per byte of \
-             the stream.",
-            edited(&with_grid, anchor_context::CONTEXT, |p| (p[4], p[5]) = (22, 8)),
+            "ACTX's levels and planes made dense (table log2 22) with 8 channels: more than 64 grid bits per byte \
+             of the stream.",
+            edited(&with_grid, anchor_context::CONTEXT, |p| (p[7], p[8]) = (22, 8)),
+        ),
+        refusal(
+            "anchor-context-plane-level",
+            "S12.7-context",
+            "section 'ACTX', field `plane level` … 0 is outside 1..=24",
+            "ACTX declares a plane level of resolution 2^0.",
+            edited(&with_grid, anchor_context::CONTEXT, |p| p[5] = 0),
         ),
         refusal(
             "anchor-sh-degree",

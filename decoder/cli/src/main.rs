@@ -134,9 +134,10 @@ fn info(path: &Path) -> Result<()> {
             && let Some(c) = &a.context
         {
             println!(
-                "context       levels {:?} (2^r cells per axis), 2^{} entries per hashed level, {} channels: {} \
-                 entries; network width {}, steps 2^{} / 2^{}",
+                "context       levels {:?}, plane levels {:?} (2^r cells per axis), 2^{} entries per hashed grid, \
+                 {} channels: {} entries; network width {}, steps 2^{} / 2^{}",
                 c.shape.levels,
+                c.shape.planes,
                 c.shape.table_log2,
                 c.shape.channels,
                 c.shape.entries(a.grid.depth),

@@ -339,10 +339,19 @@ fn read_networks(payload: &[u8]) -> Result<(usize, usize, [QuantizedMlp; 3]), De
 
 /// A varint field that must be 1 to `max`.
 pub(super) fn bounded(r: &mut FieldReader, field: &'static str, max: usize) -> Result<usize, FieldError> {
+    within(r, field, 1..=max)
+}
+
+/// A varint count in `range`.
+pub(super) fn within(
+    r: &mut FieldReader,
+    field: &'static str,
+    range: std::ops::RangeInclusive<usize>,
+) -> Result<usize, FieldError> {
     let v = r.varint(field)? as usize;
-    match (1..=max).contains(&v) {
+    match range.contains(&v) {
         true => Ok(v),
-        false => Err(r.error(field, format!("{v} is outside 1..={max}"))),
+        false => Err(r.error(field, format!("{v} is outside {range:?}"))),
     }
 }
 

@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
-use super::anchor::{QuantizedAnchors, QuantizedMlp, bounded, exponent};
+use super::anchor::{QuantizedAnchors, QuantizedMlp, bounded, exponent, within};
 use super::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::{GaussianModel, MAX_MEAN, MEAN_DENOMINATOR, SCALE_OFFSET};
 use crate::anchor::Mlp;
@@ -138,6 +138,8 @@ impl QuantizedContext {
         let mut w = FieldWriter::new();
         w.varint(self.shape.levels.len() as u32);
         self.shape.levels.iter().for_each(|&r| w.u8(r));
+        w.varint(self.shape.planes.len() as u32);
+        self.shape.planes.iter().for_each(|&r| w.u8(r));
         w.u8(self.shape.table_log2);
         w.varint(u32::from(self.shape.channels));
         let m = &self.mlp;
@@ -167,13 +169,15 @@ impl QuantizedContext {
     pub fn read(payload: &[u8], depth: u8, values: usize, stream_len: usize) -> Result<Self, DecodeError> {
         let mut r = FieldReader::new("ACTX", payload);
         let levels = bounded(&mut r, "levels", MAX_LEVELS)?;
-        let levels = (0..levels).map(|_| level(&mut r)).collect::<Result<Vec<u8>, FieldError>>()?;
+        let levels = (0..levels).map(|_| level(&mut r, "level")).collect::<Result<Vec<u8>, FieldError>>()?;
+        let planes = within(&mut r, "plane levels", 0..=MAX_LEVELS)?;
+        let planes = (0..planes).map(|_| level(&mut r, "plane level")).collect::<Result<Vec<u8>, FieldError>>()?;
         let table_log2 = r.u8("table log2")?;
         if !TABLE_LOG2.contains(&table_log2) {
             return Err(r.error("table log2", format!("{table_log2} is outside {TABLE_LOG2:?}")).into());
         }
         let channels = bounded(&mut r, "channels", usize::from(MAX_CHANNELS))? as u8;
-        let shape = ContextGridShape { levels, table_log2, channels };
+        let shape = ContextGridShape { levels, planes, table_log2, channels };
         let bits = u64::from(shape.entries(depth)) * u64::from(channels);
         if bits > GRID_BITS_PER_BYTE * stream_len as u64 {
             return Err(DecodeError::invalid(
@@ -209,11 +213,11 @@ impl QuantizedContext {
 }
 
 /// A level's resolution log2, 1 to [`MAX_LEVEL_LOG2`].
-fn level(r: &mut FieldReader) -> Result<u8, FieldError> {
-    let v = r.u8("level")?;
+fn level(r: &mut FieldReader, field: &'static str) -> Result<u8, FieldError> {
+    let v = r.u8(field)?;
     match (1..=MAX_LEVEL_LOG2).contains(&v) {
         true => Ok(v),
-        false => Err(r.error("level", format!("{v} is outside 1..={MAX_LEVEL_LOG2}"))),
+        false => Err(r.error(field, format!("{v} is outside 1..={MAX_LEVEL_LOG2}"))),
     }
 }
 

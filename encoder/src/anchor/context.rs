@@ -20,11 +20,11 @@ pub const CONTEXT_HIDDEN: usize = 32;
 /// fewer bits per parameter than the MLPs that make the Gaussians.
 pub const CONTEXT_STEP_EXPONENT: i8 = -8;
 
-/// The grid every anchor model trains with unless told otherwise: 6 levels from 8 to 256
-/// cells per axis, 2^12 entries per hashed level, 2 channels (about 6 KB before coding; HAC's
-/// 2^13 x 12 levels x 4 channels plus 2D planes is sized for 10x more anchors).
-pub fn default_shape() -> ContextGridShape {
-    ContextGridShape { levels: vec![3, 4, 5, 6, 7, 8], table_log2: 12, channels: 2 }
+/// The grid an anchor model trains with: 6 levels from 8 to 256 cells per axis, 2^12
+/// entries per hashed grid, 2 channels (about 6 KB before coding; HAC's 2^13 x 12 levels x 4
+/// channels is sized for 10x more anchors), and 2D planes at the levels `planes` (HAC has 4).
+pub fn context_shape(planes: Vec<u8>) -> ContextGridShape {
+    ContextGridShape { levels: vec![3, 4, 5, 6, 7, 8], planes, table_log2: 12, channels: 2 }
 }
 
 /// What the context model needs of the anchors, fixed for a run.
@@ -32,7 +32,7 @@ pub struct ContextLookup {
     pub shape: ContextGridShape,
     /// Entries of the grid's tables together.
     pub entries: usize,
-    /// Per anchor, level and corner: the entry [N * L * 8] and its weight [N * L * 8, 1].
+    /// Per anchor, group and corner: the entry [N * G * 8] and its weight [N * G * 8, 1].
     corner_entries: Tensor<1, Int>,
     corner_weights: Tensor<2>,
     /// Which entries some anchor weighs (weight > 0).
@@ -43,7 +43,7 @@ pub struct ContextLookup {
 impl ContextLookup {
     /// The lookup of anchors at integer octree coordinates `coords` on an octree of `depth`.
     pub fn new(shape: ContextGridShape, coords: &[[u32; 3]], depth: u8, device: &Device) -> Self {
-        let mut corners: Vec<Corner> = Vec::with_capacity(coords.len() * shape.levels.len() * 8);
+        let mut corners: Vec<Corner> = Vec::with_capacity(coords.len() * shape.groups() * 8);
         for &q in coords {
             shape.corners(q, depth, &mut corners);
         }
@@ -81,16 +81,16 @@ impl ContextLookup {
         ]
     }
 
-    /// Each anchor's context [N, L * C] from the grid's entries [E, C] (autodiff), through
-    /// their signs.
+    /// Each anchor's context [N, G * C] (G groups of corners) from the grid's entries [E, C]
+    /// (autodiff), through their signs.
     pub fn context(&self, grid: Tensor<2>) -> Tensor<2> {
         let c = usize::from(self.shape.channels);
-        let levels = self.shape.levels.len();
+        let groups = self.shape.groups();
         let clipped = grid.clone().clamp(-1.0, 1.0);
         let signs = grid.greater_equal_elem(0.0).float() * 2.0 - 1.0;
         let binary = clipped.clone() + (signs - clipped).detach();
         let gathered = binary.select(0, self.corner_entries.clone()) * self.corner_weights.clone().autodiff();
-        gathered.reshape([self.anchors, levels, 8, c]).sum_dim(2).reshape([self.anchors, levels * c])
+        gathered.reshape([self.anchors, groups, 8, c]).sum_dim(2).reshape([self.anchors, groups * c])
     }
 
     /// The model's outputs [N, outputs] for `params` as [`Self::initial_parameters`] lays them
@@ -129,7 +129,7 @@ mod tests {
     #[test]
     fn the_context_uses_signs_and_passes_gradients() {
         let device = Device::flex();
-        let shape = ContextGridShape { levels: vec![1], table_log2: 8, channels: 1 };
+        let shape = ContextGridShape { levels: vec![1], planes: vec![], table_log2: 8, channels: 1 };
         // Depth 2: q = (1, 0, 0) lies halfway between entries 0 and 1; (2, 2, 2) on entry 13.
         let lookup = ContextLookup::new(shape, &[[1, 0, 0], [2, 2, 2]], 2, &device);
         assert_eq!(lookup.entries, 27);
@@ -149,7 +149,7 @@ mod tests {
     #[test]
     fn grid_bits_count_only_used_entries() {
         let device = Device::flex();
-        let shape = ContextGridShape { levels: vec![1], table_log2: 8, channels: 1 };
+        let shape = ContextGridShape { levels: vec![1], planes: vec![], table_log2: 8, channels: 1 };
         let lookup = ContextLookup::new(shape, &[[1, 0, 0], [0, 0, 0]], 2, &device);
         // Entries 0 and 1 are used: one +1 and one -1 cost 2 bits; the other 25 are free.
         let mut grid = vec![1.0f32; 27];

@@ -14,7 +14,7 @@ use serde::Serialize;
 use super::{
     WrapperSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, section_sizes, write_report,
 };
-use crate::anchor::context::{ContextLookup, default_shape};
+use crate::anchor::context::{ContextLookup, context_shape};
 use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
@@ -48,6 +48,8 @@ pub struct AnchorJob {
     pub lambda: Option<f32>,
     /// Train and code with the context model (SPEC.md section 12.7); needs the rate term.
     pub context: bool,
+    /// The context grid's 2D plane levels (SPEC.md section 12.7; none: 3D levels only).
+    pub context_planes: Vec<u8>,
     /// Grow and prune anchors over the first half of stage 1 ([`crate::anchor::growth`]), up
     /// to `max_anchors` (default: twice the initial anchors).
     pub growth: bool,
@@ -154,8 +156,15 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     }
     let coords = grid_coordinates(&initial.positions, &grid)?;
     if job.context {
-        let lookup = ContextLookup::new(default_shape(), &coords, grid.depth, &trainer.device());
-        println!("context grid: {} entries in {} levels", lookup.entries, lookup.shape.levels.len());
+        let lookup =
+            ContextLookup::new(context_shape(job.context_planes.clone()), &coords, grid.depth, &trainer.device());
+        let shape = &lookup.shape;
+        println!(
+            "context grid: {} entries in {} levels and {} plane levels",
+            lookup.entries,
+            shape.levels.len(),
+            shape.planes.len()
+        );
         trainer = trainer.with_context(lookup);
     }
     if job.learned_steps && job.lambda.is_some() {

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Args, CommandFactory, ValueEnum};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+use pwgs_decoder::stream::anchor_context::MAX_LEVELS;
 use pwgs_encoder::anchor::quantize::AnchorSteps;
 use pwgs_encoder::anchor::train::ANCHOR_STAGE_TWO_LR_SCALE;
 use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
@@ -29,6 +30,7 @@ const ANCHOR_ONLY: &[&str] = &[
     "no_quantization_noise",
     "lambda",
     "no_anchor_context",
+    "context_planes",
     "anchor_growth",
     "fixed_anchor_steps",
 ];
@@ -111,6 +113,10 @@ pub(crate) struct EncodeArgs {
     /// which on fern gave streams 8-10% smaller at equal or higher PSNR.
     #[arg(long)]
     no_anchor_context: bool,
+    /// Anchor base: add HAC's 2D planes (xy, xz, yz) to the context grid at these levels
+    /// (`r,r,...`: 2^r cells per axis, 1 to 24; the 3D levels are 3 to 8).
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=24), conflicts_with = "no_anchor_context")]
+    context_planes: Vec<u8>,
     /// Anchor base: grow anchors where neural Gaussians keep large screen gradients and
     /// prune those that stay transparent, over the first half of the iterations (Scaffold-GS's
     /// anchor densification).
@@ -257,6 +263,9 @@ impl EncodeArgs {
 
     /// `--base anchor`: the anchor training job, refusing what the anchor base cannot do yet.
     pub(crate) fn anchor_job(&self, scene: &Path) -> Result<AnchorJob> {
+        if self.context_planes.len() > MAX_LEVELS {
+            bail!("--context-planes takes at most {MAX_LEVELS} levels");
+        }
         Ok(AnchorJob {
             scene: scene.to_path_buf(),
             load: self.load.options(),
@@ -270,6 +279,7 @@ impl EncodeArgs {
             quantization_noise: !self.no_quantization_noise,
             lambda: (self.lambda > 0.0).then_some(self.lambda),
             context: !self.no_anchor_context && self.lambda > 0.0,
+            context_planes: self.context_planes.clone(),
             growth: self.anchor_growth,
             max_anchors: self.max_anchors,
             learned_steps: !self.fixed_anchor_steps,
