@@ -266,6 +266,9 @@ impl EncodeArgs {
         if self.context_planes.len() > MAX_LEVELS {
             bail!("--context-planes takes at most {MAX_LEVELS} levels");
         }
+        if !self.context_planes.is_empty() && self.lambda == 0.0 {
+            bail!("--context-planes belongs to the context model, which --lambda 0 turns off");
+        }
         Ok(AnchorJob {
             scene: scene.to_path_buf(),
             load: self.load.options(),
