@@ -256,4 +256,7 @@ fn pwenc_trains_the_wrapper_on_anchors() {
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
     assert_eq!(report["iterations"].as_u64(), Some(24));
     assert!(report["stream"]["wrapper"]["parameters"].as_u64().unwrap() > 0);
+    // λ follows the distortion into stage 2 (WD on pixels here against stage 1's pixel loss).
+    let factor = report["stage_two_lambda_factor"].as_f64().expect("the report gives λ's factor");
+    assert!(factor.is_finite() && factor > 0.0 && factor != 1.0, "{factor}");
 }

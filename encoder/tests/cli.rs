@@ -184,6 +184,8 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--wrapper-lr", "0.1"], "--wrapper-lr applies to training"),
         (vec![scene, "--no-wrapper", "--wrapper-width", "8"], "--wrapper-width"),
         (vec![scene, "--lambda", "0", "--context-planes", "6"], "--context-planes belongs to the context model"),
+        (vec![scene, "--wrapper-lambda-scale", "twice"], "nor `auto`"),
+        (vec![scene, "--base", "3dgs", "--wrapper-lambda-scale", "2"], "--wrapper-lambda-scale applies to the anchor"),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

@@ -18,7 +18,7 @@ use crate::anchor::context::{ContextLookup, context_shape};
 use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
-use crate::anchor::train::{AnchorTrainer, GrowthTotals};
+use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
 use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians};
@@ -48,6 +48,8 @@ pub struct AnchorJob {
     pub lambda: Option<f32>,
     /// Train and code with the context model (SPEC.md section 12.7); needs the rate term.
     pub context: bool,
+    /// How λ carries over into stage 2, with the wrapper.
+    pub stage_two_lambda: StageTwoLambda,
     /// The context grid's 2D plane levels (SPEC.md section 12.7; none: 3D levels only).
     pub context_planes: Vec<u8>,
     /// Grow and prune anchors over the first half of stage 1 ([`crate::anchor::growth`]), up
@@ -101,6 +103,8 @@ pub struct AnchorReport {
     pub last_step_gaussians: usize,
     pub quantization_noise: bool,
     pub lambda: Option<f32>,
+    /// With the wrapper and the rate term: λ's factor at the last step of stage 2.
+    pub stage_two_lambda_factor: Option<f32>,
     /// The rate model's estimate of the attributes' size at the last step, in bytes.
     pub estimated_attribute_bytes: Option<f64>,
     /// With the context model: its grid's size as an adaptive binary coder would code it.
@@ -142,7 +146,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     let total = job.iterations.saturating_add(stage_two);
     let mut trainer = AnchorTrainer::new(&initial, &data, total, job.background, job.seed)?;
     if let Some(w) = &job.wrapper {
-        trainer = trainer.with_wrapper(w.clone())?;
+        trainer = trainer.with_wrapper(w.clone())?.with_stage_two_lambda(job.stage_two_lambda);
         println!(
             "stage 1: {} iterations; stage 2: {stage_two} steps ({} crops per training view, at least {})",
             job.iterations, w.crops_per_view, w.min_steps
@@ -197,6 +201,10 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     }
     let training_seconds = start.elapsed().as_secs_f64();
     println!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
+    let stage_two_lambda_factor = (job.wrapper.is_some() && job.lambda.is_some()).then(|| trainer.lambda_factor());
+    if let Some(factor) = stage_two_lambda_factor {
+        println!("stage 2 ended with λ x {factor:.2}");
+    }
     let growth = trainer.growth_totals();
     if let Some(g) = growth {
         println!("anchors: {} grown, {} pruned", g.grown, g.pruned);
@@ -295,6 +303,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         last_step_gaussians,
         quantization_noise: job.quantization_noise,
         lambda: job.lambda,
+        stage_two_lambda_factor,
         estimated_attribute_bytes,
         context_grid_bytes,
         growth,

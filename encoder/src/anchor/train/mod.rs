@@ -15,7 +15,8 @@
 //!
 //! With a [`WrapperTraining`], stage 2 (from its start iteration) scores a crop of each step's
 //! view with WD through the perceptual wrapper f, which trains jointly, exactly as on the plain
-//! base ([`crate::train::wrapper_stage`]); the rate term stays on.
+//! base ([`crate::train::wrapper_stage`]); the rate term stays on, its λ scaled to WD's size
+//! ([`StageTwoLambda`]).
 //!
 //! With a context model ([`super::context`]), the rate's means and scales come per anchor
 //! from the model's grid and network instead of per channel.
@@ -38,6 +39,10 @@ use pwgs_decoder::stream::plain::PositionGrid;
 
 mod growth_event;
 mod rate_term;
+mod stage_two_lambda;
+
+use stage_two_lambda::DistortionScale;
+pub use stage_two_lambda::StageTwoLambda;
 
 use super::context::ContextLookup;
 use super::growth::{AnchorStats, GrowthSchedule};
@@ -119,6 +124,8 @@ pub struct AnchorTrainer {
     /// Stage 2's settings and what its WD compares, until it starts; then the stage.
     wrapper_settings: Option<(WrapperTraining, VggWasserstein)>,
     wrapper: Option<WrapperStage>,
+    /// λ's factor in stage 2, from the running means of both stages' distortions.
+    distortion_scale: DistortionScale,
     growth: Option<Growth>,
     frame: SceneFrame,
     pub iteration: u32,
@@ -230,6 +237,7 @@ impl AnchorTrainer {
             learned_steps: None,
             wrapper_settings: None,
             wrapper: None,
+            distortion_scale: DistortionScale::new(StageTwoLambda::Scaled),
             growth: None,
             frame: data.normalization.frame(),
             iteration: 0,
@@ -289,6 +297,18 @@ impl AnchorTrainer {
         let wd = settings.prepare(&cameras, &self.positions.device())?;
         self.wrapper_settings = Some((settings, wd));
         Ok(self)
+    }
+
+    /// How λ carries over into stage 2 (by default scaled by the distortions' ratio).
+    pub fn with_stage_two_lambda(mut self, rule: StageTwoLambda) -> Self {
+        self.distortion_scale = DistortionScale::new(rule);
+        self
+    }
+
+    /// λ's factor now: 1 in stage 1, in stage 2 what [`StageTwoLambda`] makes of the
+    /// distortions so far.
+    pub fn lambda_factor(&self) -> f32 {
+        self.distortion_scale.factor(self.wrapper.is_some())
     }
 
     /// The synthesis network's current (float) weights, once stage 2 has begun.
@@ -436,13 +456,14 @@ impl AnchorTrainer {
         let (x0, y0) = (w.x0 as usize, w.y0 as usize);
         let seen = target.slice([y0..y0 + w.height as usize, x0..x0 + w.width as usize, 0..3]);
         let mse = (shown.inner() - seen).powi_scalar(2).mean();
+        self.distortion_scale.record(self.wrapper.is_some(), tensor_values(distortion.clone().inner())[0]);
         let mut loss = distortion + volume;
         let mut bits_per_value = None;
         if let Some(lambda) = lambda {
             let steps = steps.expect("the rate needs the quantization steps");
             let bpp = self.mean_bits(&attributes, &tracked, &steps, mask_gate, &masks);
             bits_per_value = Some(tensor_values(bpp.clone().inner())[0]);
-            loss = loss + bpp * lambda;
+            loss = loss + bpp * (lambda * self.lambda_factor());
         }
         let grads = loss.backward();
         let loss_value = tensor_values(loss.inner())[0];

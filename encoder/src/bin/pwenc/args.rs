@@ -7,7 +7,7 @@ use clap::{Args, CommandFactory, ValueEnum};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_decoder::stream::anchor_context::MAX_LEVELS;
 use pwgs_encoder::anchor::quantize::AnchorSteps;
-use pwgs_encoder::anchor::train::ANCHOR_STAGE_TWO_LR_SCALE;
+use pwgs_encoder::anchor::train::{ANCHOR_STAGE_TWO_LR_SCALE, StageTwoLambda};
 use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
 use pwgs_encoder::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
@@ -16,7 +16,7 @@ use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::session::{AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions};
 use pwgs_encoder::train::TrainConfig;
 
-use crate::values::{parse_color, parse_positive, parse_rate_pair, parse_vector, parse_weight};
+use crate::values::{parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_vector, parse_weight};
 use crate::wrapper_args::WrapperArgs;
 
 /// Options only the plain base reads: the anchor base sets its size with --lambda.
@@ -31,6 +31,7 @@ const ANCHOR_ONLY: &[&str] = &[
     "lambda",
     "no_anchor_context",
     "context_planes",
+    "wrapper_lambda_scale",
     "anchor_growth",
     "fixed_anchor_steps",
 ];
@@ -117,6 +118,11 @@ pub(crate) struct EncodeArgs {
     /// (`r,r,...`: 2^r cells per axis, 1 to 24; the 3D levels are 3 to 8).
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u8).range(1..=24), conflicts_with = "no_anchor_context")]
     context_planes: Vec<u8>,
+    /// Anchor base with the wrapper: λ in stage 2, as a multiple of stage 1's: `auto` scales
+    /// it by the ratio of the two stages' mean distortions (WD against the pixel loss), so that
+    /// the rate term keeps its weight; a number F multiplies it by F (1: as in stage 1).
+    #[arg(long, default_value = "auto", value_parser = parse_stage_two_lambda, conflicts_with = "no_wrapper")]
+    wrapper_lambda_scale: StageTwoLambda,
     /// Anchor base: grow anchors where neural Gaussians keep large screen gradients and
     /// prune those that stay transparent, over the first half of the iterations (Scaffold-GS's
     /// anchor densification).
@@ -283,6 +289,7 @@ impl EncodeArgs {
             lambda: (self.lambda > 0.0).then_some(self.lambda),
             context: !self.no_anchor_context && self.lambda > 0.0,
             context_planes: self.context_planes.clone(),
+            stage_two_lambda: self.wrapper_lambda_scale,
             growth: self.anchor_growth,
             max_anchors: self.max_anchors,
             learned_steps: !self.fixed_anchor_steps,

@@ -1,5 +1,7 @@
 //! Parsers of pwenc's option values, each refusing what the option cannot mean.
 
+use pwgs_encoder::anchor::train::StageTwoLambda;
+
 pub(crate) fn parse_rate_pair(s: &str) -> Result<[f32; 2], String> {
     let parts: Option<Vec<f32>> = s.split(',').map(|p| p.trim().parse::<f32>().ok()).collect();
     match parts.as_deref() {
@@ -44,5 +46,12 @@ pub(crate) fn parse_color(s: &str) -> Result<[f32; 3], String> {
     match three_numbers(s) {
         Some(rgb) if rgb.iter().all(|v| (0.0..=1.0).contains(v)) => Ok(rgb),
         _ => Err(format!("`{s}` is not `white`, `black` or three values in [0, 1] like 0.5,0.5,0.5")),
+    }
+}
+
+pub(crate) fn parse_stage_two_lambda(s: &str) -> Result<StageTwoLambda, String> {
+    match s {
+        "auto" => Ok(StageTwoLambda::Scaled),
+        _ => parse_weight(s).map(StageTwoLambda::Times).map_err(|e| format!("{e}, nor `auto`")),
     }
 }
