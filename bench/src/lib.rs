@@ -5,3 +5,4 @@ pub mod bjontegaard;
 pub mod plot;
 pub mod report;
 pub mod runs;
+pub mod sweep;
