@@ -153,9 +153,14 @@ impl Curve {
         if name.is_empty() {
             bail!("`{arg}`: the curve needs a name");
         }
-        let mut runs = files.split(',').map(|f| Run::read(Path::new(f))).collect::<Result<Vec<_>>>()?;
+        let runs = files.split(',').map(|f| Run::read(Path::new(f))).collect::<Result<Vec<_>>>()?;
+        Ok(Self::new(name.to_string(), runs))
+    }
+
+    /// The curve of `runs`, sorted by size.
+    pub fn new(name: String, mut runs: Vec<Run>) -> Self {
         runs.sort_by(|a, b| a.bytes.total_cmp(&b.bytes));
-        Ok(Self { name: name.to_string(), runs })
+        Self { name, runs }
     }
 
     /// (bytes, score) of every run that has `metric`.

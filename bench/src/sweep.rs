@@ -84,22 +84,26 @@ impl Plan {
         overall.set_style(style("points {pos}/{len} [{elapsed_precise}] {msg}"));
         let mut curves = Vec::with_capacity(self.curves.len());
         for curve in &self.curves {
-            let mut reports = Vec::with_capacity(curve.points.len());
+            let mut done = Vec::with_capacity(curve.points.len());
             for (i, point) in curve.points.iter().enumerate() {
                 let stem = runs.join(format!("{}_{i}", file_stem(&curve.name)));
                 let report = with_suffix(&stem, ".json");
                 overall.set_message(format!("{} {}", curve.name, point.join(" ")));
-                if Run::read(&report).is_err() {
-                    let bar = bars.add(ProgressBar::new(0));
-                    bar.set_style(style("  {bar:30} {pos}/{len} iterations [{elapsed_precise}<{eta_precise}]"));
-                    let outcome = self.run_point(pwenc, point, &stem, &bar);
-                    bar.finish_and_clear();
-                    outcome.with_context(|| format!("the point {i} of `{}` ({})", curve.name, point.join(" ")))?;
-                }
-                reports.push(report.display().to_string());
+                let run = match Run::read(&report) {
+                    Ok(kept) => kept,
+                    Err(_) => {
+                        let bar = bars.add(ProgressBar::new(0));
+                        bar.set_style(style("  {bar:30} {pos}/{len} iterations [{elapsed_precise}<{eta_precise}]"));
+                        let outcome = self.run_point(pwenc, point, &stem, &bar);
+                        bar.finish_and_clear();
+                        outcome.with_context(|| format!("the point {i} of `{}` ({})", curve.name, point.join(" ")))?;
+                        Run::read(&report)?
+                    }
+                };
+                done.push(run);
                 overall.inc(1);
             }
-            curves.push(Curve::parse(&format!("{}={}", curve.name, reports.join(",")))?);
+            curves.push(Curve::new(curve.name.clone(), done));
         }
         overall.finish_and_clear();
         Ok(curves)

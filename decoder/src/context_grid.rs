@@ -52,11 +52,19 @@ impl ContextGridShape {
         (1u64 << (depth - Self::cell_log2(r, depth))) + 1
     }
 
-    /// Entries of one grid of `dims` dimensions (3, or 2 for a plane) at level `r`: each
-    /// corner point when they fit in 2^table_log2 (dense), else 2^table_log2 (hashed).
+    /// Whether a grid of `dims` dimensions (3, or 2 for a plane) at level `r` stores each
+    /// corner point, which it does when they fit in 2^table_log2 entries (else it hashes them).
+    fn dense(&self, r: u8, depth: u8, dims: u32) -> bool {
+        Self::side(r, depth).saturating_pow(dims) <= 1u64 << self.table_log2
+    }
+
+    /// Entries of one grid of `dims` dimensions at level `r`: its corner points when dense,
+    /// else 2^table_log2.
     fn grid_entries(&self, r: u8, depth: u8, dims: u32) -> u32 {
-        let points = Self::side(r, depth).saturating_pow(dims);
-        points.min(1u64 << self.table_log2) as u32
+        match self.dense(r, depth, dims) {
+            true => Self::side(r, depth).pow(dims) as u32,
+            false => 1 << self.table_log2,
+        }
     }
 
     /// Entries of one 3D level's table.
@@ -85,18 +93,23 @@ impl ContextGridShape {
     /// plane level and plane (xy, xz, yz) its 4 corners (first axis, then second) and 4 of
     /// weight 0.
     pub fn corners(&self, q: [u32; 3], depth: u8, out: &mut Vec<Corner>) {
+        let grid = |r: u8, dims: u32, base: u32| Grid {
+            r,
+            depth,
+            dense: self.dense(r, depth, dims),
+            table_log2: self.table_log2,
+            base,
+        };
         let mut base = 0u32;
         for &r in &self.levels {
-            let entries = self.level_entries(r, depth);
-            grid_corners(q, [0, 1, 2], Grid { r, depth, entries, table_log2: self.table_log2, base }, out);
-            base += entries;
+            grid_corners(q, [0, 1, 2], grid(r, 3, base), out);
+            base += self.level_entries(r, depth);
         }
         for &r in &self.planes {
-            let entries = self.grid_entries(r, depth, 2);
             for axes in PLANE_AXES {
-                grid_corners(q, axes, Grid { r, depth, entries, table_log2: self.table_log2, base }, out);
+                grid_corners(q, axes, grid(r, 2, base), out);
                 out.extend([Corner { entry: base, weight: 0.0 }; 4]);
-                base += entries;
+                base += self.grid_entries(r, depth, 2);
             }
         }
     }
@@ -130,8 +143,8 @@ impl ContextGridShape {
 struct Grid {
     r: u8,
     depth: u8,
-    /// Its entries ([`ContextGridShape::grid_entries`]): the corner points when dense.
-    entries: u32,
+    /// Whether it stores each corner point (else it hashes them).
+    dense: bool,
     table_log2: u8,
     /// Its first entry in the concatenation of every table.
     base: u32,
@@ -143,14 +156,13 @@ fn grid_corners<const D: usize>(q: [u32; 3], axes: [usize; D], grid: Grid, out: 
     let s = ContextGridShape::cell_log2(grid.r, grid.depth);
     let side = ContextGridShape::side(grid.r, grid.depth) as u32;
     let unit = (1u32 << s) as f32;
-    let dense = u64::from(side).saturating_pow(D as u32) <= 1u64 << grid.table_log2;
     let coords = axes.map(|a| q[a]);
     let cell = coords.map(|c| c >> s);
     let t = coords.map(|c| (c & ((1u32 << s) - 1)) as f32 / unit);
     for bits in 0..1u32 << D {
         let b: [u32; D] = std::array::from_fn(|a| (bits >> a) & 1);
         let p: [u32; D] = std::array::from_fn(|a| cell[a] + b[a]);
-        let index = match dense {
+        let index = match grid.dense {
             true => p.iter().rev().fold(0u32, |index, &c| index * side + c),
             false => {
                 let h = (0..D).fold(0u32, |h, a| h ^ p[a].wrapping_mul(HASH_PRIMES[a]));
@@ -159,7 +171,6 @@ fn grid_corners<const D: usize>(q: [u32; 3], axes: [usize; D], grid: Grid, out: 
         };
         let factor = |a: usize| if b[a] == 1 { t[a] } else { 1.0 - t[a] };
         let weight = (1..D).fold(factor(0), |w, a| w * factor(a));
-        debug_assert!(index < grid.entries);
         out.push(Corner { entry: grid.base + index, weight });
     }
 }

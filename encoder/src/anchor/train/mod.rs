@@ -124,8 +124,8 @@ pub struct AnchorTrainer {
     /// Stage 2's settings and what its WD compares, until it starts; then the stage.
     wrapper_settings: Option<(WrapperTraining, VggWasserstein)>,
     wrapper: Option<WrapperStage>,
-    /// λ's factor in stage 2, from the running means of both stages' distortions.
-    distortion_scale: DistortionScale,
+    /// With a stage 2: λ's factor there, from the running means of both stages' distortions.
+    distortion_scale: Option<DistortionScale>,
     growth: Option<Growth>,
     frame: SceneFrame,
     pub iteration: u32,
@@ -237,7 +237,7 @@ impl AnchorTrainer {
             learned_steps: None,
             wrapper_settings: None,
             wrapper: None,
-            distortion_scale: DistortionScale::new(StageTwoLambda::Scaled),
+            distortion_scale: None,
             growth: None,
             frame: data.normalization.frame(),
             iteration: 0,
@@ -296,19 +296,21 @@ impl AnchorTrainer {
         let cameras: Vec<Camera> = self.views.iter().map(|(c, _)| *c).collect();
         let wd = settings.prepare(&cameras, &self.positions.device())?;
         self.wrapper_settings = Some((settings, wd));
+        self.distortion_scale = Some(DistortionScale::new(StageTwoLambda::Scaled));
         Ok(self)
     }
 
-    /// How λ carries over into stage 2 (by default scaled by the distortions' ratio).
+    /// How λ carries over into stage 2 ([`Self::with_wrapper`] scales it by the distortions'
+    /// ratio); without a stage 2 there is nothing to carry over.
     pub fn with_stage_two_lambda(mut self, rule: StageTwoLambda) -> Self {
-        self.distortion_scale = DistortionScale::new(rule);
+        self.distortion_scale = self.distortion_scale.map(|_| DistortionScale::new(rule));
         self
     }
 
     /// λ's factor now: 1 in stage 1, in stage 2 what [`StageTwoLambda`] makes of the
     /// distortions so far.
     pub fn lambda_factor(&self) -> f32 {
-        self.distortion_scale.factor(self.wrapper.is_some())
+        self.distortion_scale.as_ref().map_or(1.0, |scale| scale.factor(self.wrapper.is_some()))
     }
 
     /// The synthesis network's current (float) weights, once stage 2 has begun.
@@ -456,7 +458,9 @@ impl AnchorTrainer {
         let (x0, y0) = (w.x0 as usize, w.y0 as usize);
         let seen = target.slice([y0..y0 + w.height as usize, x0..x0 + w.width as usize, 0..3]);
         let mse = (shown.inner() - seen).powi_scalar(2).mean();
-        self.distortion_scale.record(self.wrapper.is_some(), tensor_values(distortion.clone().inner())[0]);
+        if let Some(scale) = &mut self.distortion_scale {
+            scale.record(self.wrapper.is_some(), tensor_values(distortion.clone().inner())[0]);
+        }
         let mut loss = distortion + volume;
         let mut bits_per_value = None;
         if let Some(lambda) = lambda {

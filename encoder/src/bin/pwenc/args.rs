@@ -209,18 +209,14 @@ impl EncodeArgs {
     /// silently differs from its command line. `given(id)` says whether the command line set
     /// the argument `id`.
     pub(crate) fn check_options(&self, given: impl Fn(&str) -> bool) -> Result<()> {
-        let wrapper_ids: Vec<String> = WrapperArgs::augment_args(clap::Command::new("wrapper"))
-            .get_arguments()
-            .map(|a| a.get_id().to_string())
-            .filter(|id| id != "no_wrapper")
-            .collect();
+        let wrapper = WrapperArgs::augment_args(clap::Command::new("wrapper"));
         let (ignored, why): (Vec<&str>, &str) = match (&self.from_ply, self.base) {
             (Some(_), _) => (
                 ANCHOR_ONLY
                     .iter()
                     .chain(TRAINING_ONLY)
                     .copied()
-                    .chain(wrapper_ids.iter().map(String::as_str))
+                    .chain(wrapper.get_arguments().map(|a| a.get_id().as_str()).filter(|&id| id != "no_wrapper"))
                     .collect(),
                 "applies to training on a scene; --from-ply compresses the model as it is",
             ),
