@@ -4,6 +4,7 @@ mod common;
 
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, rgb_to_sh_dc};
+use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{RenderOptions, Window, rasterize, rasterize_window, render};
 
 #[test]
@@ -202,6 +203,15 @@ fn ten_thousand_gaussians_in_one_tile() {
     let (naive, _) = naive_render(&g, &cam, &options);
     let diff = max_abs_diff(&out.color, &naive);
     assert!(diff < 1e-5, "difference {diff}");
+    // The blend loops read a tile's splats through block copies: every position once, in order.
+    let list = out.bins.tile(0);
+    let expected = |k: usize| (k, out.splats[list[k] as usize]);
+    let front: Vec<_> = out.bins.splats(0, &out.splats, ListOrder::FrontToBack).collect();
+    assert_eq!(front, (0..list.len()).map(expected).collect::<Vec<_>>());
+    for end in [0, 1, 31, 32, 33, 9_999, 10_000, 20_000] {
+        let back: Vec<_> = out.bins.splats(0, &out.splats, ListOrder::BackToFront { end }).collect();
+        assert_eq!(back, (0..end.min(list.len())).rev().map(expected).collect::<Vec<_>>(), "end {end}");
+    }
 }
 
 #[test]

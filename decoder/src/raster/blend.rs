@@ -6,7 +6,7 @@
 //! front-to-back order on one thread, so the image is bit-identical for any thread count.
 
 use super::project::Splat;
-use super::tiles::TileBins;
+use super::tiles::{ListOrder, TileBins};
 use super::{Cutoff, RenderOptions, TILE_SIZE};
 use crate::portable_math::exp_f32;
 
@@ -69,11 +69,11 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
         let mut last = [0u32; TILE_PIXELS];
         let mut done = [false; TILE_PIXELS];
         let mut remaining = tw * (y1 - y0) as usize;
-        for (k, &si) in bins.tile(t).iter().enumerate() {
+        for (k, s) in bins.splats(t, splats, ListOrder::FrontToBack) {
             if remaining == 0 {
                 break;
             }
-            let s = &splats[si as usize];
+            let s = &s;
             let [bx0, bx1, by0, by1] = s.bbox;
             for py in by0.max(y0)..by1.min(y1) {
                 let dy = s.mean[1] - (py as f32 + 0.5);

@@ -9,7 +9,7 @@ use wide::{f32x8, i32x8, u32x8};
 
 use super::blend::{Band, SMOOTH_CUTOFF_BAND};
 use super::project::Splat;
-use super::tiles::TileBins;
+use super::tiles::{ListOrder, TileBins};
 use super::{Cutoff, RenderOptions, TILE_SIZE, Window};
 use crate::portable_math::{EXP_F32_COEFFICIENTS, EXP_F32_HI, EXP_F32_LN2_HI, EXP_F32_LN2_LO, EXP_F32_LO, ROUND_F32};
 
@@ -104,11 +104,11 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
             }
         }
         let mut remaining = tw as usize * (y1 - y0) as usize;
-        for (k, &si) in bins.tile(t).iter().enumerate() {
+        for (k, s) in bins.splats(t, splats, ListOrder::FrontToBack) {
             if remaining == 0 {
                 break;
             }
-            let s = &splats[si as usize];
+            let s = &s;
             let [bx0, bx1, by0, by1] = s.bbox;
             let (xa, xb) = (bx0.max(x0), bx1.min(x1));
             if xa >= xb {

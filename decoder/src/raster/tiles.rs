@@ -33,10 +33,83 @@ impl TileBins {
         [x0, (x0 + TILE_SIZE).min(w.x0 + w.width), y0, (y0 + TILE_SIZE).min(w.y0 + w.height)]
     }
 
+    /// Tile `t`'s splats with their positions in its list: front to back, or (`back_to_front`)
+    /// from position `end - 1` down to 0. See [`TileSplats`].
+    pub fn splats<'a>(&'a self, t: usize, splats: &'a [Splat], order: ListOrder) -> TileSplats<'a> {
+        let list = self.tile(t);
+        let (next, end) = match order {
+            ListOrder::FrontToBack => (0, list.len()),
+            ListOrder::BackToFront { end } => (end.min(list.len()), 0),
+        };
+        TileSplats {
+            list,
+            splats,
+            reverse: matches!(order, ListOrder::BackToFront { .. }),
+            next,
+            end,
+            block: Vec::new(),
+            taken: 0,
+        }
+    }
+
     /// Index in the window's pixel arrays of image pixel (x, y).
     pub fn pixel_index(&self, x: u32, y: u32) -> usize {
         let w = self.window;
         (y - w.y0) as usize * w.width as usize + (x - w.x0) as usize
+    }
+}
+
+/// Which way [`TileBins::splats`] walks a tile's list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ListOrder {
+    FrontToBack,
+    /// Positions `end - 1` down to 0.
+    BackToFront {
+        end: usize,
+    },
+}
+
+/// Splats per copied block: a few kilobytes, enough misses in flight to hide the latency.
+const GATHER_BLOCK: usize = 32;
+
+/// The splats of one tile's list, in order, with their positions in the list.
+///
+/// They are copied out of the splat array a block at a time. A tile's list indexes that array
+/// (7 MB for 100k splats) at random; read in the blend loop, each splat's first load waited for
+/// memory (a third of the vectorized blend's time on 100k splats at 504x378), while the block
+/// copy's loads are independent, so the memory system serves them together.
+pub struct TileSplats<'a> {
+    list: &'a [u32],
+    splats: &'a [Splat],
+    reverse: bool,
+    /// The next list position to copy, and where copying stops.
+    next: usize,
+    end: usize,
+    block: Vec<(usize, Splat)>,
+    taken: usize,
+}
+
+impl Iterator for TileSplats<'_> {
+    type Item = (usize, Splat);
+
+    fn next(&mut self) -> Option<(usize, Splat)> {
+        if self.taken == self.block.len() {
+            self.block.clear();
+            self.taken = 0;
+            let (list, splats) = (self.list, self.splats);
+            if self.reverse {
+                let from = self.next.saturating_sub(GATHER_BLOCK).max(self.end);
+                self.block.extend((from..self.next).rev().map(|k| (k, splats[list[k] as usize])));
+                self.next = from;
+            } else {
+                let to = (self.next + GATHER_BLOCK).min(self.end);
+                self.block.extend((self.next..to).map(|k| (k, splats[list[k] as usize])));
+                self.next = to;
+            }
+        }
+        let item = *self.block.get(self.taken)?;
+        self.taken += 1;
+        Some(item)
     }
 }
 

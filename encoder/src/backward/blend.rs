@@ -9,6 +9,7 @@
 
 use pwgs_decoder::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
 use pwgs_decoder::raster::project::Splat;
+use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{BlendPath, Cutoff, RenderOptions, Rendered};
 use rayon::prelude::*;
 
@@ -120,7 +121,6 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
 /// gradient into `grads`, indexed like the tile's list.
 fn tile_backward(t: usize, rendered: &Rendered, options: &RenderOptions, v_color: &[f32], grads: &mut [EntryGrad]) {
     let bins = &rendered.bins;
-    let entries = bins.tile(t);
     let [x0, x1, y0, y1] = bins.tile_rect(t);
     let tw = (x1 - x0) as usize;
     let mut pixels: Vec<PixelState> = Vec::with_capacity(tw * (y1 - y0) as usize);
@@ -140,8 +140,8 @@ fn tile_backward(t: usize, rendered: &Rendered, options: &RenderOptions, v_color
         }
     }
     let deepest = pixels.iter().map(|p| p.last).max().unwrap_or(0);
-    for k in (0..deepest).rev() {
-        let s = &rendered.splats[entries[k] as usize];
+    for (k, s) in bins.splats(t, &rendered.splats, ListOrder::BackToFront { end: deepest }) {
+        let s = &s;
         let [bx0, bx1, by0, by1] = s.bbox;
         let [a, b, c] = s.conic.map(f64::from);
         let opacity = s.opacity as f64;

@@ -7,6 +7,7 @@
 
 use pwgs_decoder::raster::blend::SMOOTH_CUTOFF_BAND;
 use pwgs_decoder::raster::blend_simd::{LANES as CHUNK, chunk_dx, splat_alpha8};
+use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{Cutoff, RenderOptions, Rendered, TILE_SIZE};
 use wide::f64x4;
 
@@ -110,13 +111,12 @@ pub(super) fn tile_backward(
     grads: &mut [EntryGrad],
 ) {
     let bins = &rendered.bins;
-    let entries = bins.tile(t);
     let [x0, x1, y0, y1] = bins.tile_rect(t);
     let mut state = load_state(t, rendered, options, v_color);
     let deepest = state.last.iter().flatten().copied().max().unwrap_or(0);
     let (one, zero) = (f64x4::splat(1.0), f64x4::splat(0.0));
-    for k in (0..deepest).rev() {
-        let s = &rendered.splats[entries[k] as usize];
+    for (k, s) in bins.splats(t, &rendered.splats, ListOrder::BackToFront { end: deepest }) {
+        let s = &s;
         let [bx0, bx1, by0, by1] = s.bbox;
         let (xa, xb) = (bx0.max(x0), bx1.min(x1));
         if xa >= xb {
