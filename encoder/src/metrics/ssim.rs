@@ -9,6 +9,7 @@
 use burn::tensor::Tensor;
 
 use super::depthwise::separable_filter;
+use super::lowpass_op::ssim_window;
 
 /// Window side; the window is centred, so it reaches `WINDOW / 2` pixels either side.
 const WINDOW: usize = 11;
@@ -30,7 +31,7 @@ pub enum SsimConvention {
 }
 
 /// The normalized 1-D Gaussian taps; the 2-D window is their outer product.
-fn gaussian_taps() -> Vec<f64> {
+pub(super) fn gaussian_taps() -> Vec<f64> {
     let center = (WINDOW / 2) as f64;
     let g: Vec<f64> = (0..WINDOW).map(|x| (-(x as f64 - center).powi(2) / (2.0 * SIGMA * SIGMA)).exp()).collect();
     let sum: f64 = g.iter().sum();
@@ -45,19 +46,18 @@ fn gaussian_taps() -> Vec<f64> {
 pub fn ssim(a: Tensor<4>, b: Tensor<4>, convention: SsimConvention) -> Tensor<1> {
     assert_eq!(a.dims(), b.dims(), "SSIM of tensors of different shapes");
     let [_, channels, height, width] = a.dims();
-    let padding = match convention {
-        SsimConvention::ZeroPadded => WINDOW / 2,
+    // One depthwise pass filters all five moment images at once.
+    let moments = Tensor::cat(vec![a.clone(), b.clone(), a.clone() * a.clone(), b.clone() * b.clone(), a * b], 1);
+    let filtered = match convention {
+        SsimConvention::ZeroPadded => ssim_window(moments),
         SsimConvention::Valid => {
             assert!(
                 height >= WINDOW && width >= WINDOW,
                 "valid-window SSIM needs at least 11x11, got {width}x{height}"
             );
-            0
+            separable_filter(moments, &gaussian_taps(), 1, 0)
         }
     };
-    // One depthwise pass filters all five moment images at once.
-    let moments = Tensor::cat(vec![a.clone(), b.clone(), a.clone() * a.clone(), b.clone() * b.clone(), a * b], 1);
-    let filtered = separable_filter(moments, &gaussian_taps(), 1, padding);
     let [mu_a, mu_b, e_aa, e_bb, e_ab]: [Tensor<4>; 5] = filtered
         .split(channels, 1)
         .try_into()

@@ -358,7 +358,7 @@ impl AnchorTrainer {
     }
 
     /// The learning rate of parameter `i` at the current iteration (in stage 2, times the
-    /// wrapper's `base_lr_scale`).
+    /// wrapper's `base_lr_scale`, but for the masks).
     fn rate(&self, i: usize) -> f32 {
         let group = match i {
             0..3 => i,
@@ -368,7 +368,8 @@ impl AnchorTrainer {
         };
         let [start, end] = RATES[group];
         let t = self.iteration as f32 / self.iterations.max(1) as f32;
-        let stage_two = self.wrapper.as_ref().map_or(1.0, WrapperStage::base_lr_scale);
+        // The masks answer to the rate alone, which stage 2 raises: they keep stage 1's rate.
+        let stage_two = if group == 6 { 1.0 } else { self.wrapper.as_ref().map_or(1.0, WrapperStage::base_lr_scale) };
         let rate = (start.ln() * (1.0 - t) + end.ln() * t).exp() * stage_two;
         if group == 2 { rate * self.extent } else { rate }
     }
