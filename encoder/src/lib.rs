@@ -8,6 +8,7 @@ pub mod compress;
 pub mod evaluate;
 pub mod exit;
 pub mod fidelity;
+pub mod heap;
 pub mod init;
 pub mod metrics;
 pub mod session;
