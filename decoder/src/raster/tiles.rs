@@ -33,8 +33,8 @@ impl TileBins {
         [x0, (x0 + TILE_SIZE).min(w.x0 + w.width), y0, (y0 + TILE_SIZE).min(w.y0 + w.height)]
     }
 
-    /// Tile `t`'s splats with their positions in its list: front to back, or (`back_to_front`)
-    /// from position `end - 1` down to 0. See [`TileSplats`].
+    /// Tile `t`'s splats with their positions in its list, in the given order (see
+    /// [`TileSplats`]).
     pub fn splats<'a>(&'a self, t: usize, splats: &'a [Splat], order: ListOrder) -> TileSplats<'a> {
         let list = self.tile(t);
         let (next, end) = match order {
