@@ -91,7 +91,7 @@ const RATES: [[f32; 2]; 8] = [
 /// The anchors' learning rates in stage 2 (the wrapper's), as a multiple of stage 1's: their
 /// MLPs are shared by every Gaussian, and at full rate WD pulled them from the pixels. On fern
 /// (1,000 + 1,000 iterations) 0.1 gave 256 KB, DISTS 0.066, LPIPS 0.190, 25.9 dB where 1 gave
-/// 285 KB, DISTS 0.065, LPIPS 0.202, 24.0 dB.
+/// 285 KB, DISTS 0.065, LPIPS 0.202, 24.0 dB. The mask logits are excepted (see `rate`).
 pub const ANCHOR_STAGE_TWO_LR_SCALE: f32 = 0.1;
 
 /// Learned step factors stay within e^±this (×0.1 to ×10) of the base steps.
