@@ -48,6 +48,12 @@ impl SameSizeFilter {
         }
     }
 
+    /// The same filter as plain differentiable convolutions, for backends without the op.
+    fn plain(self, x: Tensor<4>) -> Tensor<4> {
+        let taps = self.taps();
+        separable_filter(x, &taps, 1, taps.len() / 2)
+    }
+
     /// Row pass then column pass, each a depthwise convolution (flex has a fast path for those).
     fn apply(self, x: FloatTensor<Flex>) -> FloatTensor<Flex> {
         let channels = x.shape()[1];
@@ -112,7 +118,7 @@ pub fn binomial_lowpass(x: Tensor<4>) -> Tensor<4> {
     if on_flex(&x) {
         Tensor::from_dispatch(<Dispatch as LowpassBackend>::binomial_lowpass(x.into_dispatch()))
     } else {
-        separable_filter(x, &BINOMIAL, 1, 1)
+        SameSizeFilter::Binomial.plain(x)
     }
 }
 
@@ -122,8 +128,6 @@ pub fn ssim_window(x: Tensor<4>) -> Tensor<4> {
     if on_flex(&x) {
         Tensor::from_dispatch(<Dispatch as LowpassBackend>::ssim_window(x.into_dispatch()))
     } else {
-        let taps = gaussian_taps();
-        let padding = taps.len() / 2;
-        separable_filter(x, &taps, 1, padding)
+        SameSizeFilter::SsimWindow.plain(x)
     }
 }

@@ -371,7 +371,8 @@ impl AnchorTrainer {
         // The masks answer to the rate, which stage 2 raises: they keep stage 1's learning
         // rate. On fern at λ 0.05 that made 73,322 bytes at DISTS 0.1275, where masks at a tenth
         // made 100,662 bytes at 0.1096 and the anchor base alone 73,429 bytes at 0.1645.
-        let stage_two = if group == 6 { 1.0 } else { self.wrapper.as_ref().map_or(1.0, WrapperStage::base_lr_scale) };
+        let stage_two =
+            if i == MASK_LOGITS { 1.0 } else { self.wrapper.as_ref().map_or(1.0, WrapperStage::base_lr_scale) };
         let rate = (start.ln() * (1.0 - t) + end.ln() * t).exp() * stage_two;
         if group == 2 { rate * self.extent } else { rate }
     }
