@@ -11,6 +11,9 @@ use pwgs_decoder::stream::plain::PositionGrid;
 use pwgs_encoder::anchor::context::{ContextLookup, context_shape};
 use pwgs_encoder::anchor::growth::GrowthSchedule;
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
+use pwgs_encoder::anchor::network_steps::{
+    CONTEXT_EXPONENTS, StepObjective, WEIGHT_EXPONENTS, choose_context_step, choose_mlp_steps,
+};
 use pwgs_encoder::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use pwgs_encoder::anchor::train::AnchorTrainer;
 use pwgs_encoder::evaluate::{MeanScore, evaluate};
@@ -100,14 +103,7 @@ fn grown_anchors_train_and_code() {
     assert_eq!(distinct.len(), voxels.len(), "one anchor per voxel");
     let mut content = quantize(&trained, &grid, &steps).unwrap();
     quantize_context(&mut content, &trainer.context_model().unwrap());
-    let header = stream::header::Header {
-        base: stream::header::BaseKind::Anchors,
-        gaussian_count: content.len() as u32,
-        sh_degree: 0,
-        center: data.normalization.center.to_array(),
-        scale: data.normalization.scale,
-        background: [0.0; 3],
-    };
+    let header = anchor_header(&data, content.len());
     let decoded = stream::decode(&stream::encode(&header, &content, None).unwrap()).unwrap();
     let Base::Anchors(model) = &decoded.scene.base else { panic!("an anchor stream") };
     // The stream holds every anchor with an open mask, at its trained position.
@@ -120,6 +116,70 @@ fn grown_anchors_train_and_code() {
     let stored = grid_coordinates(&model.positions, &grid).unwrap();
     assert_eq!(stored.len(), open.len());
     assert!(stored.iter().all(|v| open.contains(v)), "the stream's anchors are the trained ones");
+}
+
+/// The networks' steps are the encoder's choice: the context network's changes only the
+/// probability tables (the decoded model is the same, in fewer bytes), and the Gaussian MLPs'
+/// follows λ, from the least distortion at λ = 0 to the fewest bytes under a heavy rate term.
+#[test]
+fn network_steps_follow_the_objective() {
+    let tmp = tempfile::tempdir().unwrap();
+    let options = SyntheticOptions { width: 64, height: 48, views: 8, seed: 6, points: 800 };
+    let (data, initial, grid) = anchor_scene(tmp.path(), &options);
+    let coords = grid_coordinates(&initial.positions, &grid).unwrap();
+    let steps = AnchorSteps::default();
+    let trainer = AnchorTrainer::new(&initial, &data, 150, [0.0; 3], 0).unwrap();
+    let lookup = ContextLookup::new(context_shape(vec![]), &coords, grid.depth, &trainer.device());
+    let mut trainer = trainer.with_quantization_noise(steps, 15).with_rate(0.004, 45).with_context(lookup);
+    while trainer.iteration < trainer.iterations {
+        trainer.step().unwrap();
+    }
+    let (model, trained) = (trainer.model(), trainer.context_model().unwrap());
+    let mut content = quantize(&model, &grid, &steps).unwrap();
+    quantize_context(&mut content, &trained);
+    let header = anchor_header(&data, content.len());
+    let default_stream = stream::encode(&header, &content, None).unwrap();
+    let e = choose_context_step(&mut content, &trained.mlp, &header).unwrap().expect("a context model");
+    assert!(CONTEXT_EXPONENTS.contains(&e));
+    assert_eq!(content.context.as_ref().unwrap().mlp.weight_exponent, e);
+    let chosen_stream = stream::encode(&header, &content, None).unwrap();
+    eprintln!("context network at 2^{e}: {} -> {} bytes", default_stream.len(), chosen_stream.len());
+    assert!(chosen_stream.len() <= default_stream.len());
+    let hash = |bytes: &[u8]| stream::decode(bytes).unwrap().scene.attribute_hash();
+    assert_eq!(hash(&chosen_stream), hash(&default_stream), "the context's step changes no decoded value");
+
+    let networks = [&model.opacity, &model.color, &model.covariance];
+    let mut choose = |lambda: f32| {
+        let objective = StepObjective { views: &data.train, options: Default::default(), lambda, rated_values: 1000 };
+        let candidates = choose_mlp_steps(&mut content, networks, &header, &objective).unwrap();
+        assert_eq!(candidates.len(), WEIGHT_EXPONENTS.count());
+        let chosen = *candidates.iter().find(|c| c.weight_exponent == content.mlps[0].weight_exponent).unwrap();
+        assert!(content.mlps.iter().all(|m| m.weight_exponent == chosen.weight_exponent));
+        assert_eq!(stream::encode(&header, &content, None).unwrap().len(), chosen.bytes);
+        (candidates, chosen)
+    };
+    let (candidates, exact) = choose(0.0);
+    for c in &candidates {
+        eprintln!("2^{}: {} bytes, distortion {:.5}", c.weight_exponent, c.bytes, c.distortion);
+    }
+    assert!(candidates.iter().all(|c| c.distortion >= exact.distortion), "λ = 0 picks the least distortion");
+    assert!(candidates[0].bytes > candidates.last().unwrap().bytes, "coarser weights take fewer bytes");
+    let (candidates, cheap) = choose(1e4);
+    assert!(candidates.iter().all(|c| c.bytes >= cheap.bytes), "a heavy rate term picks the fewest bytes");
+    assert!(cheap.bytes < exact.bytes);
+    assert!(cheap.weight_exponent > exact.weight_exponent);
+}
+
+/// The header of an anchor stream of `anchors` anchors for `data`.
+fn anchor_header(data: &Dataset, anchors: usize) -> stream::header::Header {
+    stream::header::Header {
+        base: stream::header::BaseKind::Anchors,
+        gaussian_count: anchors as u32,
+        sh_degree: 0,
+        center: data.normalization.center.to_array(),
+        scale: data.normalization.scale,
+        background: [0.0; 3],
+    }
 }
 
 /// Learned steps follow λ: a heavy rate term coarsens every group's step, a light one refines
@@ -197,6 +257,10 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     assert!(step != 0.125 && step > 0.0, "{step}");
     let stored = content.feature_step;
     assert_eq!(stored, step as f32);
+    // The networks' steps are chosen after training, and the report says which.
+    let reported = |key: &str| report["stream"][key].as_i64().unwrap();
+    assert_eq!(reported("weight_step_log2"), i64::from(content.mlps[0].weight_exponent));
+    assert_eq!(reported("context_step_log2"), i64::from(context.mlp.weight_exponent));
 
     // --export-ply writes standard Gaussians of SH degree 3; --init-ply is refused before any
     // training, and nothing is written.

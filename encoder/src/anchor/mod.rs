@@ -1,13 +1,14 @@
 //! The anchor base's encoder side (DESIGN.md section 8, issue 15): the initial model from a
 //! point cloud ([`init`]), training for pixels ([`train`]) with anchors grown and pruned
 //! ([`growth`]) and the stream content of a trained
-//! model ([`quantize`]). The model itself, and how it turns into each view's Gaussians, is the
+//! model ([`quantize`]), with its networks' steps chosen after training ([`network_steps`]). The model itself, and how it turns into each view's Gaussians, is the
 //! decoder's [`pwgs_decoder::anchor`].
 
 pub mod context;
 pub mod growth;
 mod host;
 pub mod init;
+pub mod network_steps;
 pub mod quantize;
 pub mod rate;
 pub mod train;

@@ -17,6 +17,7 @@ use super::{
 use crate::anchor::context::{ContextLookup, context_shape};
 use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
+use crate::anchor::network_steps::{StepCandidate, StepObjective, choose_context_step, choose_mlp_steps};
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
@@ -79,8 +80,11 @@ pub struct AnchorStreamSummary {
     pub feature_step: f32,
     pub scaling_step: f32,
     pub offset_step: f32,
+    /// The Gaussian MLPs' steps (chosen by rate-distortion with the rate term).
     pub weight_step_log2: i8,
     pub bias_step_log2: i8,
+    /// The context network's step (chosen for the fewest bytes), with the context model.
+    pub context_step_log2: Option<i8>,
     pub sections: Vec<(String, usize)>,
     pub attribute_sha256: String,
     pub wrapper: Option<WrapperSummary>,
@@ -225,10 +229,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
             steps.feature, steps.scaling, steps.offset, job.steps.feature, job.steps.scaling, job.steps.offset
         );
     }
-    let mut content = quantize(&trainer.model(), &grid, &steps)?;
-    if let Some(trained) = trainer.context_model() {
-        quantize_context(&mut content, &trained);
-    }
+    let model = trainer.model();
+    let mut content = quantize(&model, &grid, &steps)?;
     let header = Header {
         base: BaseKind::Anchors,
         gaussian_count: u32::try_from(content.len()).context("too many anchors for a stream")?,
@@ -237,6 +239,24 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         scale: data.normalization.scale,
         background: job.background,
     };
+    let context_step_log2 = match trainer.context_model() {
+        Some(trained) => {
+            quantize_context(&mut content, &trained);
+            choose_context_step(&mut content, &trained.mlp, &header)?
+        }
+        None => None,
+    };
+    if let Some(lambda) = job.lambda {
+        let objective = StepObjective {
+            views: &data.train,
+            options: RenderOptions { background: job.background, ..Default::default() },
+            lambda,
+            rated_values: trainer.rated_values(),
+        };
+        let candidates =
+            choose_mlp_steps(&mut content, [&model.opacity, &model.color, &model.covariance], &header, &objective)?;
+        print_step_choice(&candidates, content.mlps[0].weight_exponent, context_step_log2);
+    }
     let wrapper = match trainer.synthesis() {
         Some(weights) => {
             // f's steps are chosen on renders of the anchors as a decoder lists them (in the
@@ -277,8 +297,9 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         feature_step: steps.feature,
         scaling_step: steps.scaling,
         offset_step: steps.offset,
-        weight_step_log2: steps.weight_exponent,
-        bias_step_log2: steps.bias_exponent,
+        weight_step_log2: content.mlps[0].weight_exponent,
+        bias_step_log2: content.mlps[0].bias_exponent,
+        context_step_log2,
         sections: section_sizes(&bytes),
         attribute_sha256: scene.attribute_hash(),
         wrapper: wrapper.as_ref().map(WrapperSummary::of),
@@ -317,6 +338,23 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         write_report(path, &report)?;
     }
     Ok(report)
+}
+
+/// One line per candidate of the MLP step choice, and the steps chosen.
+fn print_step_choice(candidates: &[StepCandidate], chosen: i8, context: Option<i8>) {
+    for c in candidates {
+        println!(
+            "  MLP weights at 2^{}: {} bytes, pixel objective {:.5}, cost {:.5}{}",
+            c.weight_exponent,
+            c.bytes,
+            c.distortion,
+            c.cost,
+            if c.weight_exponent == chosen { "  (chosen)" } else { "" }
+        );
+    }
+    if let Some(e) = context {
+        println!("context network at 2^{e} (the fewest bytes)");
+    }
 }
 
 /// The stream of `content` (and `wrapper`) and what every decoder reconstructs from it.

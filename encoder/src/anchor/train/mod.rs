@@ -163,7 +163,7 @@ pub struct AnchorStep {
 }
 
 /// Scaffold-GS's pixel objective: 0.8 L1 + 0.2 (1 - SSIM).
-fn pixel_loss(image: Tensor<3>, target: Tensor<3>) -> Tensor<1> {
+pub(crate) fn pixel_loss(image: Tensor<3>, target: Tensor<3>) -> Tensor<1> {
     let l1 = (image.clone() - target.clone()).abs().mean();
     let to_nchw = |t: Tensor<3>| t.permute([2, 0, 1]).unsqueeze::<4>();
     let structural = ssim(to_nchw(image), to_nchw(target), SsimConvention::ZeroPadded);
