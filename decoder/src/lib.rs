@@ -8,6 +8,8 @@ pub mod camera;
 pub mod camera_json;
 pub mod context_grid;
 pub mod gaussians;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod ply;
 pub mod portable_math;
 pub mod random_scene;

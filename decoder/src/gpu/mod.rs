@@ -1,0 +1,165 @@
+//! The GPU renderer (feature `gpu`, issue 20): the decoder's views on a wgpu device, for the
+//! player and for scripts that render many views.
+//!
+//! What runs where:
+//! - CPU: the anchors' per-view MLPs ([`Scene::gaussians_for`]), projection, the depth sort and
+//!   tile binning (the reference's own code, [`crate::raster`]), and the wrapper's conditioning
+//!   (the normative noise pyramid and the Plücker rays, [`crate::wrapper::Conditioning`]).
+//! - GPU: alpha blending of the binned splats ([`blend`]) and the synthesis network f
+//!   ([`synthesis`]); the base render stays on the device between them.
+//!
+//! The CPU rasterizer stays the definition. Blending here follows its rules in its order; only
+//! `exp` (the GPU's own) and the compiler's freedom to fuse multiply-adds differ, so images
+//! agree within a tolerance (`decoder/tests/gpu.rs` states it), not bit for bit.
+
+mod blend;
+mod buffers;
+mod synthesis;
+
+use std::time::{Duration, Instant};
+
+use crate::camera::Camera;
+use crate::raster::{RenderOptions, tiles, visible_splats};
+use crate::rgb_image::RgbImage;
+use crate::scene::{Scene, Shown};
+use crate::wrapper::Conditioning;
+
+/// Why the GPU renderer cannot start or render.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("no GPU adapter is available ({0}); on Linux without a GPU, install Mesa's lavapipe (mesa-vulkan-drivers)")]
+    NoAdapter(String),
+    #[error("the GPU adapter refused a device: {0}")]
+    NoDevice(String),
+    #[error("{what} needs {bytes} bytes in one GPU buffer, more than this device's limit of {limit}")]
+    TooLarge { what: &'static str, bytes: u64, limit: u64 },
+    #[error("the wrapper's hidden width {0} is above the GPU renderer's 64")]
+    WrapperTooWide(usize),
+    #[error("the GPU renderer blends with the hard alpha cutoff only (the smooth one is for gradient checks)")]
+    SmoothCutoff,
+    #[error("reading the image back from the GPU failed: {0}")]
+    Readback(String),
+}
+
+/// Which image a render returns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Output {
+    /// What a decoder shows: through the wrapper when the stream has one.
+    Shown,
+    /// The base render alone, wrapper or not.
+    Base,
+}
+
+/// Where a render's time went.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageTimes {
+    /// Per-view Gaussians (anchor MLPs), projection, sort and binning, on the CPU.
+    pub prepare: Duration,
+    /// Blending on the GPU, including the upload of the splats.
+    pub raster: Duration,
+    /// The wrapper: conditioning on the CPU, f on the GPU.
+    pub synthesis: Duration,
+    /// Copying the result back.
+    pub readback: Duration,
+}
+
+/// A wgpu device with the renderer's pipelines.
+pub struct GpuRenderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter: wgpu::AdapterInfo,
+    blend: blend::BlendPass,
+    synthesis: synthesis::SynthesisPass,
+}
+
+impl GpuRenderer {
+    /// Opens the first adapter wgpu offers (a real GPU before a software one) without a
+    /// window.
+    pub fn new() -> Result<Self, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        Self::with_adapter(&adapter)
+    }
+
+    /// The renderer on `adapter` (the player passes the one its window uses).
+    pub fn with_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("pwgs"),
+            required_limits: wgpu::Limits {
+                max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
+                max_buffer_size: limits.max_buffer_size,
+                // Blending binds 5 storage buffers, the synthesis network 5.
+                max_storage_buffers_per_shader_stage: limits.max_storage_buffers_per_shader_stage,
+                ..wgpu::Limits::downlevel_defaults()
+            },
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::NoDevice(e.to_string()))?;
+        Ok(Self::with_device(device, queue, adapter.get_info()))
+    }
+
+    /// The renderer on an existing device (shared with a window's renderer).
+    pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, adapter: wgpu::AdapterInfo) -> Self {
+        let blend = blend::BlendPass::new(&device);
+        let synthesis = synthesis::SynthesisPass::new(&device);
+        Self { device, queue, adapter, blend, synthesis }
+    }
+
+    /// The adapter's name and backend, for logs and the player's panel.
+    pub fn adapter_name(&self) -> String {
+        format!("{} ({:?})", self.adapter.name, self.adapter.backend)
+    }
+
+    /// Renders `camera`'s view of `scene`; with [`Output::Shown`] and a wrapper, also returns
+    /// the residual R.
+    pub fn render(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        options: &RenderOptions,
+        output: Output,
+    ) -> Result<(Shown, StageTimes), GpuError> {
+        let mut times = StageTimes::default();
+        let start = Instant::now();
+        let gaussians = scene.gaussians_for(camera);
+        let splats = visible_splats(&gaussians, camera, &options.projection);
+        let bins = tiles::bin(&splats, crate::raster::Window::full(camera));
+        times.prepare = start.elapsed();
+
+        let start = Instant::now();
+        let base = self.blend.run(self, &splats, &bins, options)?;
+        self.wait();
+        times.raster = start.elapsed();
+
+        let (width, height) = (camera.width, camera.height);
+        let wrapper = scene.wrapper_view().filter(|_| output == Output::Shown);
+        let Some(view) = wrapper else {
+            let start = Instant::now();
+            let data = buffers::read_f32(self, &base, width as usize * height as usize * 3)?;
+            times.readback = start.elapsed();
+            return Ok((Shown { image: RgbImage { width, height, data }, residual: None }, times));
+        };
+        let start = Instant::now();
+        let conditioning = Conditioning::new(&view.weights.config, camera, view.frame).image();
+        let (residual, image) = self.synthesis.run(self, view.weights, &base, &conditioning, width, height)?;
+        self.wait();
+        times.synthesis = start.elapsed();
+        let start = Instant::now();
+        let pixels = width as usize * height as usize * 3;
+        let data = buffers::read_f32(self, &image, pixels)?;
+        let residual = buffers::read_f32(self, &residual, pixels)?;
+        times.readback = start.elapsed();
+        Ok((Shown { image: RgbImage { width, height, data }, residual: Some(residual) }, times))
+    }
+
+    /// Blocks until the queue's work is done.
+    fn wait(&self) {
+        // A lost device surfaces as an error on the next readback; nothing to do here.
+        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+    }
+}
