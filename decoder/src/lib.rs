@@ -6,6 +6,7 @@ pub mod anchor_export;
 pub mod atomic_file;
 pub mod camera;
 pub mod camera_json;
+pub mod cli_values;
 pub mod context_grid;
 pub mod gaussians;
 #[cfg(feature = "gpu")]

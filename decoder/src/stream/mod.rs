@@ -241,6 +241,15 @@ fn check_count_against_length(header: &Header, len: usize) -> Result<(), DecodeE
     Ok(())
 }
 
+/// Each section's tag (trailing spaces trimmed) and its size in the stream, tag, length and
+/// CRC included, in stream order.
+pub fn section_sizes(container: &Container) -> Vec<(String, usize)> {
+    container
+        .sections
+        .iter()
+        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + SECTION_OVERHEAD))
+        .collect()
+}
 /// The container and header of a stream, every CRC verified, without decoding the content.
 pub fn parse(bytes: &[u8]) -> Result<(Container<'_>, Header), DecodeError> {
     let container = Container::parse(bytes)?;

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use pwgs_bitstream::{Container, SECTION_OVERHEAD};
+use pwgs_bitstream::Container;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
@@ -132,12 +132,7 @@ fn write_stream(
 
 /// Each section's tag and its bytes in the stream, header and CRC included.
 fn section_sizes(stream: &[u8]) -> Vec<(String, usize)> {
-    let container = Container::parse(stream).expect("the encoder's own stream parses");
-    container
-        .sections
-        .iter()
-        .map(|s| (String::from_utf8_lossy(&s.tag.0).trim_end().to_string(), s.payload.len() + SECTION_OVERHEAD))
-        .collect()
+    pwgs_decoder::stream::section_sizes(&Container::parse(stream).expect("the encoder's own stream parses"))
 }
 
 /// Quantizes f with steps chosen on renders of the first training views (`base_render` gives

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Args, CommandFactory, ValueEnum};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+use pwgs_decoder::cli_values::parse_vector;
 use pwgs_decoder::stream::anchor_context::MAX_LEVELS;
 use pwgs_encoder::anchor::quantize::AnchorSteps;
 use pwgs_encoder::anchor::train::{ANCHOR_STAGE_TWO_LR_SCALE, StageTwoLambda};
@@ -16,7 +17,7 @@ use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::session::{AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions};
 use pwgs_encoder::train::TrainConfig;
 
-use crate::values::{parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_vector, parse_weight};
+use crate::values::{parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight};
 use crate::wrapper_args::WrapperArgs;
 
 /// Options only the plain base reads: the anchor base sets its size with --lambda.

@@ -1,5 +1,6 @@
 //! Parsers of pwenc's option values, each refusing what the option cannot mean.
 
+use pwgs_decoder::cli_values::three_numbers;
 use pwgs_encoder::anchor::train::StageTwoLambda;
 
 pub(crate) fn parse_rate_pair(s: &str) -> Result<[f32; 2], String> {
@@ -21,19 +22,6 @@ pub(crate) fn parse_weight(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
         _ => Err(format!("`{s}` is not a finite weight >= 0")),
-    }
-}
-
-/// Three comma-separated numbers, or `None`.
-pub(crate) fn three_numbers(s: &str) -> Option<[f32; 3]> {
-    let parts: Vec<f32> = s.split(',').map(|p| p.trim().parse::<f32>()).collect::<Result<_, _>>().ok()?;
-    parts.try_into().ok()
-}
-
-pub(crate) fn parse_vector(s: &str) -> Result<[f32; 3], String> {
-    match three_numbers(s) {
-        Some(v) if v.iter().all(|c| c.is_finite()) && v.iter().any(|c| *c != 0.0) => Ok(v),
-        _ => Err(format!("`{s}` is not a nonzero vector x,y,z")),
     }
 }
 
