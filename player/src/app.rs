@@ -146,10 +146,9 @@ impl Player {
         let Ok(result) = receiver.try_recv() else { return };
         match result {
             Ok(stream) => {
-                let h = &stream.header;
                 self.orbit = match (&self.dataset, self.view) {
                     (Some(d), Some(i)) => d.orbit(i),
-                    _ => Orbit::around(glam::Vec3::from(h.center), h.scale, self.orbit.up),
+                    _ => Orbit::for_scene(&stream.scene, self.orbit.up),
                 };
                 self.message = format!("opened {}", path.display());
                 self.stream = Some(stream);
@@ -279,11 +278,10 @@ impl Player {
             }
         });
         if let Some(up) = chosen {
-            let (center, scale) = match &self.stream {
-                Some(s) => (glam::Vec3::from(s.header.center), s.header.scale),
-                None => (self.orbit.target, self.orbit.distance),
+            self.orbit = match &self.stream {
+                Some(s) => Orbit::for_scene(&s.scene, up),
+                None => Orbit::around(self.orbit.target, self.orbit.distance, up),
             };
-            self.orbit = Orbit::around(center, scale, up);
             self.view = None;
         }
     }

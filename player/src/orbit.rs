@@ -4,9 +4,12 @@
 
 use glam::Vec3;
 use pwgs_decoder::camera::{Camera, CameraError, Intrinsics};
+use pwgs_decoder::scene::{Base, Scene};
 
 /// Steepest pitch, short of the poles where the view direction meets `up`.
 const MAX_PITCH: f32 = 1.55;
+/// A new orbit looks down by this much (radians), as captures usually do.
+const START_PITCH: f32 = 0.35;
 
 /// An orbit camera. The view direction is `yaw` around `up` and `pitch` towards it, in a frame
 /// fixed by `up`; the eye is `distance` behind `target` along it.
@@ -22,11 +25,22 @@ pub struct Orbit {
 }
 
 impl Orbit {
-    /// Looking at the scene's `center` from `scale` away (streams normalize the training
-    /// cameras to about that distance), with `up` as the world's up.
-    pub fn around(center: Vec3, scale: f32, up: Vec3) -> Self {
+    /// Looking at `target` from `distance` away, a little from above, with `up` as the
+    /// world's up.
+    pub fn around(target: Vec3, distance: f32, up: Vec3) -> Self {
         let up = up.try_normalize().unwrap_or(Vec3::NEG_Y);
-        Self { target: center, distance: scale.max(1e-6), yaw: 0.0, pitch: 0.0, up, fov_y: 0.9 }
+        Self { target, distance: distance.max(1e-6), yaw: 0.0, pitch: -START_PITCH, up, fov_y: 0.9 }
+    }
+
+    /// The first view of a stream: at the median of its positions (Gaussians or anchors), which
+    /// the content surrounds, from the stream's scale (streams normalize the training cameras
+    /// to about that distance from their center).
+    pub fn for_scene(scene: &Scene, up: Vec3) -> Self {
+        let positions = match &scene.base {
+            Base::Plain(g) => &g.means,
+            Base::Anchors(a) => &a.positions,
+        };
+        Self::around(median(positions).unwrap_or(scene.frame.center), scene.frame.scale, up)
     }
 
     /// Where `camera` is and looks, orbiting a point `distance` in front of it, with `up` as
@@ -88,6 +102,20 @@ impl Orbit {
     }
 }
 
+/// The per-axis median of finite `points`, or `None` without any.
+fn median(points: &[[f32; 3]]) -> Option<Vec3> {
+    let mut m = [0.0; 3];
+    for (axis, v) in m.iter_mut().enumerate() {
+        let mut values: Vec<f32> = points.iter().map(|p| p[axis]).filter(|x| x.is_finite()).collect();
+        if values.is_empty() {
+            return None;
+        }
+        let mid = values.len() / 2;
+        *v = *values.select_nth_unstable_by(mid, f32::total_cmp).1;
+    }
+    Some(Vec3::from(m))
+}
+
 /// Two unit vectors orthogonal to `up` and to each other: yaw 0 looks along the first, yaw
 /// pi/2 along the second.
 fn frame(up: Vec3) -> (Vec3, Vec3) {
@@ -123,6 +151,8 @@ mod tests {
         orbit.fly(0.5, 0.0, 0.0);
         assert!((orbit.forward() - forward).length() < 1e-6);
         assert!(orbit.target != target);
+        assert_eq!(median(&[[1.0, 5.0, f32::NAN], [3.0, -1.0, 2.0], [2.0, 0.0, 1.0]]), Some(Vec3::new(2.0, 0.0, 2.0)));
+        assert_eq!(median(&[]), None);
         orbit.rotate(0.0, 10.0);
         assert!(orbit.pitch <= MAX_PITCH, "pitch is clamped short of the pole");
         assert!(orbit.camera(32, 32).is_ok());
