@@ -9,10 +9,7 @@
 use std::time::{Duration, Instant};
 
 use pwgs_decoder::gpu::{GpuRenderer, Output, StageTimes};
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::wrapper::SceneFrame;
-use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
+use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians, wrapped_random_scene};
 
 /// Frames timed per case, after one untimed warm-up frame (shader compilation, first uploads).
 const FRAMES: usize = 5;
@@ -33,22 +30,18 @@ fn main() {
     let (width, height) = if quick { (800, 532) } else { (1600, 1063) };
     let counts: &[usize] = if quick { &[10_000, 100_000] } else { &[10_000, 100_000, 1_000_000] };
     println!("adapter: {}; {width}x{height}; median of {FRAMES} frames", gpu.adapter_name());
-    println!("| Gaussians | wrapper | prepare ms | raster ms | synthesis ms | readback ms | frame ms | frames/s | CPU ms | CPU/GPU | max abs diff |");
+    println!(
+        "| Gaussians | wrapper | prepare ms | raster ms | synthesis ms | readback ms | frame ms | frames/s | CPU ms | CPU/GPU | max abs diff |"
+    );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    let camera = axis_camera(width, height, 0.9 * width as f32, 0.9 * width as f32, 0.5 * width as f32, 0.5 * height as f32);
+    let camera =
+        axis_camera(width, height, 0.9 * width as f32, 0.9 * width as f32, 0.5 * width as f32, 0.5 * height as f32);
     for &n in counts {
         let mut rng = SplitMix64(n as u64);
         // Smaller splats for more Gaussians, so that every count covers the view alike.
         let shrink = 0.5 * (n as f32 / 10_000.0).log10();
         let gaussians = random_gaussians(&mut rng, n, 3, [-4.5 - shrink, -2.5 - shrink]);
-        let config = WrapperConfig { width: 16, noise: true, plucker: true, seed: 7 };
-        let values: Vec<f32> = (0..config.parameter_count()).map(|_| rng.uniform(-0.3, 0.3)).collect();
-        let scene = Scene {
-            base: Base::Plain(gaussians),
-            wrapper: Some(SynthesisWeights::from_values(config, &values)),
-            frame: SceneFrame { center: glam::Vec3::new(0.0, 0.0, 4.0), scale: 2.0 },
-            background: [0.1, 0.1, 0.1],
-        };
+        let scene = wrapped_random_scene(&mut rng, gaussians, [0.1, 0.1, 0.1]);
         let options = scene.render_options();
         for output in [Output::Base, Output::Shown] {
             let wrapped = output == Output::Shown;

@@ -5,7 +5,10 @@ use glam::{Mat3, Vec3};
 
 use crate::camera::{Camera, Intrinsics};
 use crate::gaussians::{Gaussians, sh_coeff_count};
+use crate::scene::{Base, Scene};
+use crate::wrapper::SceneFrame;
 use crate::wrapper::noise::{GOLDEN, mix64};
+use crate::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
 
 /// splitmix64: tiny, fast, deterministic on every platform.
 #[derive(Debug, Clone)]
@@ -48,4 +51,18 @@ pub fn random_gaussians(rng: &mut SplitMix64, n: usize, degree: u32, log_scale: 
         g.push(mean, scale, rotation, opacity, &sh);
     }
     g
+}
+
+/// `gaussians` as a scene in the view of [`axis_camera`] (its frame centered 4 ahead) with a
+/// width-16 wrapper of every input whose weights are drawn from `rng` in [-0.3, 0.3]: strong
+/// enough that a wrong residual shows.
+pub fn wrapped_random_scene(rng: &mut SplitMix64, gaussians: Gaussians, background: [f32; 3]) -> Scene {
+    let config = WrapperConfig { width: 16, noise: true, plucker: true, seed: 7 };
+    let values: Vec<f32> = (0..config.parameter_count()).map(|_| rng.uniform(-0.3, 0.3)).collect();
+    Scene {
+        base: Base::Plain(gaussians),
+        wrapper: Some(SynthesisWeights::from_values(config, &values)),
+        frame: SceneFrame { center: Vec3::new(0.0, 0.0, 4.0), scale: 2.0 },
+        background,
+    }
 }

@@ -28,6 +28,28 @@ const SPLAT_STRIDE: u32 = 12u;
 // Interleaved RGB, row by row.
 @group(0) @binding(5) var<storage, read_write> image: array<f32>;
 
+// The CPU reference's exp_f32 (decoder/src/portable_math.rs), for x <= 0 as the falloff's
+// argument always is: k = round(x log2 e), r = x - k ln 2 in two parts, a Taylor polynomial
+// to r^7, times 2^k. WGSL's own exp may differ in the last bits, and a last-bit difference
+// can decide an alpha threshold differently; this keeps the two renderers apart only by what
+// the GPU compiler does with the same operations (fused multiply-adds).
+fn portable_exp(x: f32) -> f32 {
+    if x < -87.33 {
+        return 0.0;
+    }
+    let k = round(x * 1.4426950408889634);
+    let r = (x - k * 0.693359375) - k * -2.1219444e-4;
+    var p = 1.0 / 5040.0;
+    p = p * r + 1.0 / 720.0;
+    p = p * r + 1.0 / 120.0;
+    p = p * r + 1.0 / 24.0;
+    p = p * r + 1.0 / 6.0;
+    p = p * r + 0.5;
+    p = p * r + 1.0;
+    p = p * r + 1.0;
+    return ldexp(p, i32(k));
+}
+
 @compute @workgroup_size(16, 16, 1)
 fn main(@builtin(workgroup_id) tile: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
     let px = tile.x * 16u + local.x;
@@ -51,7 +73,7 @@ fn main(@builtin(workgroup_id) tile: vec3<u32>, @builtin(local_invocation_id) lo
         let dy = splats[s + 1u] - cy;
         let p = splats[s + 2u] * dx + splats[s + 3u] * dy;
         let q = splats[s + 4u] * dy;
-        let falloff = exp(-0.5 * (p * p + q * q));
+        let falloff = portable_exp(-0.5 * (p * p + q * q));
         let raw = splats[s + 5u] * falloff;
         if raw < params.alpha_min {
             continue;
