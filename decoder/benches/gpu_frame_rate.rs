@@ -14,10 +14,6 @@ use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians, wrap
 /// Frames timed per case, after one untimed warm-up frame (shader compilation, first uploads).
 const FRAMES: usize = 5;
 
-fn total(t: &StageTimes) -> Duration {
-    t.prepare + t.raster + t.synthesis + t.readback
-}
-
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
     let gpu = match GpuRenderer::new() {
@@ -31,9 +27,9 @@ fn main() {
     let counts: &[usize] = if quick { &[10_000, 100_000] } else { &[10_000, 100_000, 1_000_000] };
     println!("adapter: {}; {width}x{height}; median of {FRAMES} frames", gpu.adapter_name());
     println!(
-        "| Gaussians | wrapper | prepare ms | raster ms | synthesis ms | readback ms | frame ms | frames/s | CPU ms | CPU/GPU | max abs diff |"
+        "| Gaussians | wrapper | Gaussians+projection ms | sort+binning ms | raster ms | synthesis ms | readback ms | frame ms | frames/s | CPU ms | CPU/GPU | max abs diff |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let camera =
         axis_camera(width, height, 0.9 * width as f32, 0.9 * width as f32, 0.5 * width as f32, 0.5 * height as f32);
     for &n in counts {
@@ -63,11 +59,12 @@ fn main() {
             let cpu_ms = start.elapsed().as_secs_f64() * 1e3;
             let gpu_image = last.expect("frames were rendered").image;
             let max = cpu.image.data.iter().zip(&gpu_image.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-            let frame = median(total);
+            let frame = median(StageTimes::total);
             println!(
-                "| {n} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {frame:.1} | {:.2} | {cpu_ms:.0} | {:.2} | {max:.1e} |",
+                "| {n} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {frame:.1} | {:.2} | {cpu_ms:.0} | {:.2} | {max:.1e} |",
                 if wrapped { "on" } else { "off" },
-                median(|t| t.prepare),
+                median(|t| t.gaussians + t.projection),
+                median(|t| t.sort),
                 median(|t| t.raster),
                 median(|t| t.synthesis),
                 median(|t| t.readback),

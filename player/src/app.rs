@@ -13,6 +13,7 @@ use pwgs_decoder::gpu::{GpuRenderer, StageTimes};
 use pwgs_decoder::rgb_image::RgbImage;
 
 use crate::dataset_views::DatasetViews;
+use crate::headless::describe_times;
 use crate::loaded::LoadedStream;
 use crate::orbit::Orbit;
 use crate::view_mode::{ViewMode, picture};
@@ -221,21 +222,9 @@ impl Player {
             ui.label(format!("{:.1} frames/s (window)", self.fps));
         }
         if let Some(s) = &self.shown {
-            let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-            let t = &s.times;
-            let total = t.prepare + t.raster + t.synthesis + t.readback;
-            ui.label(format!(
-                "{}x{}: {:.1} ms a picture ({:.1}/s): prepare (MLPs, projection, sort, binning) {:.1} ms, \
-                 raster {:.1} ms, synthesis {:.1} ms, readback {:.1} ms",
-                s.key.width,
-                s.key.height,
-                ms(total),
-                1.0 / total.as_secs_f64().max(1e-9),
-                ms(t.prepare),
-                ms(t.raster),
-                ms(t.synthesis),
-                ms(t.readback)
-            ));
+            let per_second = 1.0 / s.times.total().as_secs_f64().max(1e-9);
+            ui.label(format!("{}x{}, {per_second:.1} pictures/s", s.key.width, s.key.height));
+            ui.label(describe_times(&s.times));
         }
         ui.label(self.gpu.adapter_name());
         ui.horizontal(|ui| {

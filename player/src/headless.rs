@@ -29,15 +29,13 @@ pub fn screenshot(stream: &Path, view: &Path, mode: ViewMode, out: &Path, frames
     let (image, times) = picture(&gpu, &loaded.scene, &camera, mode, RESIDUAL_GAIN)?;
     image.save_png(out).with_context(|| format!("cannot write {}", out.display()))?;
     eprintln!(
-        "wrote {} ({}x{}, {}) on {}: prepare {:.1} ms, raster {:.1} ms, synthesis {:.1} ms",
+        "wrote {} ({}x{}, {}) on {}: {}",
         out.display(),
         camera.width,
         camera.height,
         mode.label(),
         gpu.adapter_name(),
-        times.prepare.as_secs_f64() * 1e3,
-        times.raster.as_secs_f64() * 1e3,
-        times.synthesis.as_secs_f64() * 1e3
+        describe_times(&times)
     );
     if frames > 0 {
         let mut all = Vec::with_capacity(frames as usize);
@@ -49,22 +47,42 @@ pub fn screenshot(stream: &Path, view: &Path, mode: ViewMode, out: &Path, frames
     Ok(())
 }
 
-/// The median of each stage over `times`, and the frames per second of their sum's median.
+/// Each stage's time in milliseconds, on one line.
+pub fn describe_times(t: &StageTimes) -> String {
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    format!(
+        "{:.1} ms: Gaussians {:.1}, projection {:.1}, sort and binning {:.1} (CPU); raster {:.1}, synthesis {:.1}, readback {:.1}",
+        ms(t.total()),
+        ms(t.gaussians),
+        ms(t.projection),
+        ms(t.sort),
+        ms(t.raster),
+        ms(t.synthesis),
+        ms(t.readback)
+    )
+}
+
+/// Each stage's median over `times`, and the frames per second of the median total.
 fn print_frame_rate(times: &[StageTimes]) {
     let median = |stage: fn(&StageTimes) -> Duration| {
         let mut v: Vec<Duration> = times.iter().map(stage).collect();
         v.sort();
-        v[v.len() / 2].as_secs_f64() * 1e3
+        v[v.len() / 2]
     };
-    let total = median(|t| t.prepare + t.raster + t.synthesis + t.readback);
+    let stages = StageTimes {
+        gaussians: median(|t| t.gaussians),
+        projection: median(|t| t.projection),
+        sort: median(|t| t.sort),
+        raster: median(|t| t.raster),
+        synthesis: median(|t| t.synthesis),
+        readback: median(|t| t.readback),
+    };
+    let total = median(StageTimes::total).as_secs_f64();
     println!(
-        "{} frames: median {total:.2} ms a frame ({:.1} frames/s): prepare {:.2} ms, raster {:.2} ms, \
-         synthesis {:.2} ms, readback {:.2} ms",
+        "{} frames: median {:.2} ms a frame ({:.1} frames/s); stage medians {}",
         times.len(),
-        1e3 / total,
-        median(|t| t.prepare),
-        median(|t| t.raster),
-        median(|t| t.synthesis),
-        median(|t| t.readback)
+        total * 1e3,
+        1.0 / total,
+        describe_times(&stages)
     );
 }

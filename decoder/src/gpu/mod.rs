@@ -19,7 +19,7 @@ mod synthesis;
 use std::time::{Duration, Instant};
 
 use crate::camera::Camera;
-use crate::raster::{RenderOptions, tiles, visible_splats};
+use crate::raster::{RenderOptions, project_visible, sort_front_to_back, tiles};
 use crate::rgb_image::RgbImage;
 use crate::scene::{Scene, Shown};
 use crate::wrapper::Conditioning;
@@ -53,14 +53,25 @@ pub enum Output {
 /// Where a render's time went.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimes {
-    /// Per-view Gaussians (anchor MLPs), projection, sort and binning, on the CPU.
-    pub prepare: Duration,
+    /// The view's Gaussians (an anchor stream's MLPs), on the CPU.
+    pub gaussians: Duration,
+    /// Projection to splats, on the CPU.
+    pub projection: Duration,
+    /// Depth sort and tile binning, on the CPU.
+    pub sort: Duration,
     /// Blending on the GPU, including the upload of the splats.
     pub raster: Duration,
     /// The wrapper: conditioning on the CPU, f on the GPU.
     pub synthesis: Duration,
     /// Copying the result back.
     pub readback: Duration,
+}
+
+impl StageTimes {
+    /// The whole render.
+    pub fn total(&self) -> Duration {
+        self.gaussians + self.projection + self.sort + self.raster + self.synthesis + self.readback
+    }
 }
 
 /// A wgpu device with the renderer's pipelines.
@@ -127,9 +138,14 @@ impl GpuRenderer {
         let mut times = StageTimes::default();
         let start = Instant::now();
         let gaussians = scene.gaussians_for(camera);
-        let splats = visible_splats(&gaussians, camera, &options.projection);
+        times.gaussians = start.elapsed();
+        let start = Instant::now();
+        let mut splats = project_visible(&gaussians, camera, &options.projection);
+        times.projection = start.elapsed();
+        let start = Instant::now();
+        sort_front_to_back(&mut splats);
         let bins = tiles::bin(&splats, crate::raster::Window::full(camera));
-        times.prepare = start.elapsed();
+        times.sort = start.elapsed();
 
         let start = Instant::now();
         let base = self.blend.run(self, &splats, &bins, options)?;

@@ -114,11 +114,20 @@ pub struct Rendered {
 
 /// Projects and sorts the visible splats front to back (ties broken by index).
 pub fn visible_splats(gaussians: &Gaussians, camera: &Camera, settings: &ProjectionSettings) -> Vec<Splat> {
-    assert!(gaussians.is_consistent(), "Gaussian arrays have inconsistent lengths");
-    let mut splats: Vec<Splat> =
-        (0..gaussians.len()).into_par_iter().filter_map(|i| project::project(gaussians, i, camera, settings)).collect();
-    splats.par_sort_unstable_by(|a, b| a.depth.total_cmp(&b.depth).then(a.index.cmp(&b.index)));
+    let mut splats = project_visible(gaussians, camera, settings);
+    sort_front_to_back(&mut splats);
     splats
+}
+
+/// The splats of the Gaussians `camera` sees, in index order.
+pub fn project_visible(gaussians: &Gaussians, camera: &Camera, settings: &ProjectionSettings) -> Vec<Splat> {
+    assert!(gaussians.is_consistent(), "Gaussian arrays have inconsistent lengths");
+    (0..gaussians.len()).into_par_iter().filter_map(|i| project::project(gaussians, i, camera, settings)).collect()
+}
+
+/// Blending order: by depth, ties broken by index (so the order does not depend on threads).
+pub fn sort_front_to_back(splats: &mut [Splat]) {
+    splats.par_sort_unstable_by(|a, b| a.depth.total_cmp(&b.depth).then(a.index.cmp(&b.index)));
 }
 
 /// Renders a view.
