@@ -112,6 +112,15 @@ pub fn bd_quality(reference: &[RdPoint], test: &[RdPoint]) -> Option<Delta> {
     Some(Delta { value: mean, over })
 }
 
+/// The bytes `curve` needs for `quality`, interpolated as BD-rate interpolates (log rate
+/// against quality); `None` outside the qualities the curve spans, or with fewer than 2 points.
+/// This places a single run of another codec (one file per format) against a curve.
+pub fn bytes_at(curve: &[RdPoint], quality: f64) -> Option<f64> {
+    let interpolant = Pchip::new(curve.iter().map(|p| (p.quality, p.bytes.log10())).collect())?;
+    let (lo, hi) = interpolant.range();
+    (lo..=hi).contains(&quality).then(|| 10f64.powf(interpolant.at(quality)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -171,5 +180,17 @@ mod tests {
             last = v;
         }
         assert!((p.at(2.0) - 5.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn bytes_at_a_quality_follow_the_curve_and_stop_at_its_ends() {
+        // Ten times the bytes for every 10 units of quality: log-linear, so exact between points.
+        let c = curve(&[(1e3, 20.0), (1e4, 30.0), (1e5, 40.0)]);
+        let at = |q| bytes_at(&c, q);
+        assert!((at(25.0).unwrap() / 10f64.powf(3.5) - 1.0).abs() < 1e-9);
+        assert!((at(40.0).unwrap() / 1e5 - 1.0).abs() < 1e-9);
+        assert_eq!(at(19.9), None);
+        assert_eq!(at(40.1), None);
+        assert_eq!(bytes_at(&c[..1], 20.0), None);
     }
 }

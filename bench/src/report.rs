@@ -1,13 +1,14 @@
 //! The report: `report.md` with the runs, the Bjøntegaard deltas of every curve against the
-//! reference curve, one RD chart per metric, speed-versus-error charts (render and training
-//! time against PSNR and DISTS) and every run's per-view scores, the charts beside it.
+//! reference curve, each other run's size against the reference at equal score, one RD chart
+//! per metric, speed-versus-error charts (render and training time against PSNR and DISTS) and
+//! every run's per-view scores, the charts beside it.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::bjontegaard::{RdPoint, bd_quality, bd_rate};
+use crate::bjontegaard::{RdPoint, bd_quality, bd_rate, bytes_at};
 use crate::plot::chart;
 use crate::runs::{Axis, Curve, Metric};
 
@@ -97,6 +98,30 @@ fn deltas_table(curves: &[Curve], reference: &Curve) -> String {
     s
 }
 
+/// For each run of the other curves, the bytes `reference` needs for the same score (on each
+/// metric the run has), and the ratio: how a single file of another format compares with a
+/// curve of qualities.
+fn equal_score_table(curves: &[Curve], reference: &Curve) -> String {
+    let mut s = format!(
+        "| curve | bytes | metric | score | `{}` bytes at that score | bytes / `{}` bytes |\n|---|---|---|---|---|---|\n",
+        reference.name, reference.name
+    );
+    for c in curves.iter().filter(|c| c.name != reference.name) {
+        for r in &c.runs {
+            for m in Metric::ALL {
+                let Some(score) = r.score(m) else { continue };
+                let (at, ratio) = match bytes_at(&rd_points(reference, m), score) {
+                    Some(b) => (format!("{b:.0}"), format!("{:.2}", r.bytes / b)),
+                    None => ("outside its range".into(), "-".into()),
+                };
+                let d = digits(m);
+                let _ = writeln!(s, "| {} | {:.0} | {} | {score:.d$} | {at} | {ratio} |", c.name, r.bytes, m.label());
+            }
+        }
+    }
+    s
+}
+
 /// Writes the charts and `report.md` into `dir` (created if needed); returns the report's path.
 pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -108,6 +133,13 @@ pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path
          BD-PSNR: its PSNR difference at equal size. A curve needs 2 runs or more.\n\n{}",
         reference.name,
         deltas_table(curves, reference)
+    );
+    let _ = writeln!(
+        md,
+        "## Size at equal score\n\nEach run of the other curves against `{}` interpolated at the run's score \
+         (as BD-rate interpolates; a curve of 2 runs or more).\n\n{}",
+        reference.name,
+        equal_score_table(curves, reference)
     );
     md.push_str("## Rate-distortion charts\n\n");
     for m in Metric::ALL {

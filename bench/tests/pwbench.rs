@@ -60,6 +60,12 @@ fn the_report_states_the_deltas_the_curves_were_made_with() {
     assert!(cells[5].starts_with("-50.0% (over 0.1000 to 0.1400)"), "{row}");
     let bd_psnr: f64 = cells[7].split(' ').next().unwrap().parse().unwrap();
     assert!(bd_psnr > 1.0 && bd_psnr < 2.5, "{row}");
+    // Each run of "half" against "base" at its own score: half the bytes.
+    let equal = md.split("## Size at equal score").nth(1).unwrap_or_else(|| panic!("{md}"));
+    let row = equal.lines().find(|l| l.starts_with("| half | 100000 | PSNR (dB) |")).unwrap_or_else(|| panic!("{md}"));
+    assert!(row.ends_with("| 26.50 | 200000 | 0.50 |"), "{row}");
+    let row = equal.lines().find(|l| l.starts_with("| half | 200000 | DISTS |")).unwrap_or_else(|| panic!("{md}"));
+    assert!(row.ends_with("| 0.1000 | 400000 | 0.50 |"), "{row}");
     for metric in ["psnr", "ssim", "dists"] {
         let svg = std::fs::read_to_string(out.join(format!("rd_{metric}.svg"))).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("half"), "rd_{metric}.svg");

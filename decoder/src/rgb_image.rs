@@ -67,6 +67,12 @@ impl RgbImage {
         Ok(Self::from_rgba8(&decoded.to_rgba8(), background))
     }
 
+    /// Clamps every value to [0, 1]: the image as a display (or a PNG, before rounding) shows
+    /// it, which is what quality scores compare.
+    pub fn clamp_to_displayable(&mut self) {
+        self.data.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+    }
+
     /// Quantizes to 8 bits (values clamped to [0, 1], rounded to nearest).
     pub fn to_rgb8(&self) -> image::RgbImage {
         let bytes = self.data.iter().map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect();

@@ -1,4 +1,5 @@
-//! Evaluation on a dataset's test views: render each, compare with the ground truth (PSNR, and
+//! Evaluation on views with a ground truth (a dataset's test views, or a reference model's
+//! renders on an orbit): render each, compare with the ground truth (PSNR, and
 //! SSIM in the 3DGS zero-padded convention that published 3DGS numbers use, and any metrics of
 //! a [`MetricSuite`]), optionally save the renders.
 
@@ -8,7 +9,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use burn::tensor::Device;
-use pwgs_dataset::Dataset;
+use pwgs_dataset::View;
 use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::scene::Scene;
 use serde::Serialize;
@@ -65,13 +66,13 @@ pub fn ssim_3dgs(a: &RgbImage, b: &RgbImage) -> f64 {
     value.into_data().convert::<f64>().try_into_vec::<f64>().expect("scalar")[0]
 }
 
-/// Renders every test view as a decoder shows it (through the wrapper when the scene has one),
-/// optionally saving `<out>/<name>.png` and the ground truth as loaded (undistorted,
-/// downscaled) as `<out>/gt/<name>.png` for `pweval`, and scores it with PSNR, SSIM and
-/// `suite`'s metrics.
+/// Renders every view as a decoder shows it (through the wrapper when the scene has one,
+/// clamped to the displayable range), optionally saving `<out>/<name>.png` and the ground
+/// truth as loaded (undistorted, downscaled) as `<out>/gt/<name>.png` for `pweval`, and scores
+/// it with PSNR, SSIM and `suite`'s metrics.
 pub fn evaluate(
     scene: &Scene,
-    data: &Dataset,
+    views: &[View],
     out: Option<&Path>,
     suite: Option<&MetricSuite>,
 ) -> Result<Vec<ViewScore>> {
@@ -79,12 +80,13 @@ pub fn evaluate(
         let gt = dir.join("gt");
         std::fs::create_dir_all(&gt).with_context(|| format!("cannot create {}", gt.display()))?;
     }
-    data.test
+    views
         .iter()
         .map(|view| {
             let start = Instant::now();
-            let image = scene.render(&view.camera, &scene.render_options(), true).image;
+            let mut image = scene.render(&view.camera, &scene.render_options(), true).image;
             let render_seconds = start.elapsed().as_secs_f64();
+            image.clamp_to_displayable();
             if let Some(dir) = out {
                 let stem =
                     Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
@@ -127,9 +129,10 @@ impl<'a> Evaluation<'a> {
         Ok(Self { options, suite })
     }
 
-    /// Scores `scene` on the test views, printing a line per view and the mean.
-    pub fn run(&self, scene: &Scene, data: &Dataset) -> Result<(Vec<ViewScore>, MeanScore)> {
-        let views = evaluate(scene, data, Some(&self.options.dir), self.suite.as_ref())?;
+    /// Scores `scene` on `views` (a dataset's test views, say), printing a line per view and
+    /// the mean.
+    pub fn run(&self, scene: &Scene, views: &[View]) -> Result<(Vec<ViewScore>, MeanScore)> {
+        let views = evaluate(scene, views, Some(&self.options.dir), self.suite.as_ref())?;
         for v in &views {
             println!(
                 "{:<24} PSNR {:6.2} dB  SSIM {:.4}{}  render {:.3} s",

@@ -37,7 +37,7 @@ pub fn renders(scene: &Scene, cameras: &[Camera], options: &RenderOptions) -> Ve
         .iter()
         .map(|cam| {
             let mut image = scene.render_base(cam, options);
-            image.data.iter_mut().for_each(|v| *v = v.clamp(0.0, 1.0));
+            image.clamp_to_displayable();
             image
         })
         .collect()

@@ -42,7 +42,7 @@ fn anchors_learn_the_generated_scene() {
             frame: data.normalization.frame(),
             background: [0.0; 3],
         };
-        MeanScore::of(&evaluate(&scene, &data, None, None).unwrap()).psnr
+        MeanScore::of(&evaluate(&scene, &data.test, None, None).unwrap()).psnr
     };
     let before = psnr(&initial);
     let steps = AnchorSteps::default();

@@ -166,6 +166,49 @@ fn compresses_an_imported_ply() {
 }
 
 #[test]
+fn compares_a_model_with_a_reference_on_an_orbit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let json =
+        |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(path(name)).unwrap()).unwrap() };
+    let mut rng = pwgs_decoder::random_scene::SplitMix64(8);
+    let model = pwgs_decoder::random_scene::random_gaussians(&mut rng, 600, 1, [-4.0, -2.5]);
+    pwgs_decoder::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();
+    let orbit = ["--orbit", "3", "--orbit-size", "48"];
+    let import = [&["--from", &path("in.ply"), "-o", &path("s.pwb"), "--report", &path("import.json")], &orbit[..]];
+    let out = pwenc(&import.concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // A stream scores as the import's own orbit check scored it: the same cameras and renders.
+    let compare =
+        [&["compare", &path("in.ply"), &path("s.pwb"), "-o", &path("r"), "--report", &path("c.json")], &orbit[..]];
+    let out = pwenc(&compare.concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let (report, import) = (json("c.json"), json("import.json"));
+    let psnr = report["mean"]["psnr"].as_f64().unwrap();
+    assert!((psnr - import["orbit_psnr_mean"].as_f64().unwrap()).abs() < 1e-9, "{psnr} vs {import}");
+    assert_eq!(report["stream"]["bytes"].as_u64().unwrap(), std::fs::metadata(path("s.pwb")).unwrap().len());
+    assert_eq!(report["views"].as_array().unwrap().len(), 3);
+    assert!(std::path::Path::new(&path("r/orbit_002.png")).is_file());
+    assert!(std::path::Path::new(&path("r/gt/orbit_002.png")).is_file());
+
+    // A splat file is read as --from reads it; --size-of names the file whose size counts.
+    std::fs::write(path("in.splat"), pwgs_decoder::splat_file::gaussians_to_splat_bytes(&model)).unwrap();
+    let args = ["compare", &path("in.ply"), &path("in.splat"), "-o", &path("r2"), "--size-of", &path("in.ply")];
+    let out = pwenc(&[&args[..], &["--report", &path("c2.json")], &orbit[..]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report = json("c2.json");
+    assert_eq!(report["stream"]["bytes"].as_u64().unwrap(), std::fs::metadata(path("in.ply")).unwrap().len());
+    let splat_psnr = report["mean"]["psnr"].as_f64().unwrap();
+    assert!(splat_psnr.is_finite() && splat_psnr > 15.0, "{splat_psnr}");
+
+    // A missing candidate is named, and no report is written.
+    let out = pwenc(&["compare", &path("in.ply"), &path("gone.pwb"), "-o", &path("r3"), "--report", &path("c3.json")]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("gone.pwb"));
+    assert!(!std::path::Path::new(&path("c3.json")).exists());
+}
+
+#[test]
 fn an_option_the_job_would_ignore_is_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = tmp.path().join("scene");

@@ -19,7 +19,7 @@ fn small_scene(dir: &std::path::Path) -> Dataset {
 fn mean_psnr(g: &pwgs_decoder::gaussians::Gaussians, data: &Dataset) -> f64 {
     let scene =
         Scene { base: Base::Plain(g.clone()), wrapper: None, frame: data.normalization.frame(), background: [0.0; 3] };
-    MeanScore::of(&evaluate(&scene, data, None, None).unwrap()).psnr
+    MeanScore::of(&evaluate(&scene, &data.test, None, None).unwrap()).psnr
 }
 
 /// The README's main job: the default generated scene, 600 iterations.

@@ -305,7 +305,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         wrapper: wrapper.as_ref().map(WrapperSummary::of),
     };
     let (views, mean) = match &evaluation {
-        Some(e) => e.run(&scene, &data).map(|(views, mean)| (views, Some(mean)))?,
+        Some(e) => e.run(&scene, &data.test).map(|(views, mean)| (views, Some(mean)))?,
         None => (Vec::new(), None),
     };
     let first = &data.train[0].image;

@@ -21,8 +21,6 @@ pub struct Orbit {
     pub up: [f32; 3],
     /// Width and height of the views.
     pub size: u32,
-    /// Save the renders (input and decoded) as PNGs here.
-    pub renders: Option<PathBuf>,
 }
 
 /// Everything an import does.
@@ -32,6 +30,8 @@ pub struct ImportJob {
     pub stream: StreamOptions,
     pub background: [f32; 3],
     pub orbit: Option<Orbit>,
+    /// Save the orbit's renders (input and decoded) as PNGs here.
+    pub orbit_renders: Option<PathBuf>,
     pub report: Option<PathBuf>,
 }
 
@@ -49,8 +49,7 @@ pub struct ImportReport {
 }
 
 pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
-    let folders = job.orbit.iter().filter_map(|o| o.renders.as_ref());
-    check_outputs([&job.stream.path].into_iter().chain(&job.report), folders)?;
+    check_outputs([&job.stream.path].into_iter().chain(&job.report), &job.orbit_renders)?;
     let ply = &job.ply;
     let gaussians = read_model(ply)?;
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
@@ -68,7 +67,7 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
         let reference = renders(&input, &cameras, &options);
         let decoded = renders(decoded_scene, &cameras, &options);
         orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
-        if let Some(dir) = &orbit.renders {
+        if let Some(dir) = &job.orbit_renders {
             for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {
                 input.save_png(&dir.join(format!("orbit_{i:03}_input.png")))?;
                 decoded.save_png(&dir.join(format!("orbit_{i:03}_decoded.png")))?;

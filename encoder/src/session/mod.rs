@@ -4,6 +4,7 @@
 //! wrote as JSON-ready summaries.
 
 mod anchor;
+mod compare;
 mod import;
 mod scene;
 
@@ -24,6 +25,7 @@ use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 
 pub use anchor::{AnchorJob, AnchorReport, train_anchor_scene};
+pub use compare::{CompareJob, CompareReport, compare_models};
 pub use import::{ImportJob, ImportReport, Orbit, import_ply};
 pub use scene::{Report, SceneJob, encode_scene};
 

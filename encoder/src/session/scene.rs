@@ -144,7 +144,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         }
     };
     let (views, mean) = match &evaluation {
-        Some(e) => e.run(shown, &data).map(|(views, mean)| (views, Some(mean)))?,
+        Some(e) => e.run(shown, &data.test).map(|(views, mean)| (views, Some(mean)))?,
         None => (Vec::new(), None),
     };
     let report = Report {

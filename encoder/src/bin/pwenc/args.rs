@@ -17,7 +17,9 @@ use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::session::{AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions};
 use pwgs_encoder::train::TrainConfig;
 
-use crate::values::{parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight};
+use crate::values::{
+    check_extra_metrics, parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight,
+};
 use crate::wrapper_args::WrapperArgs;
 
 /// Options only the plain base reads: the anchor base sets its size with --lambda.
@@ -241,13 +243,7 @@ impl EncodeArgs {
 
     /// `--eval` with its metrics, when given.
     fn eval_options(&self) -> Result<Option<EvalOptions>> {
-        if let Some(m) = self.eval_metrics.iter().find(|m| matches!(m, Metric::Psnr | Metric::Ssim | Metric::Ssim3dgs))
-        {
-            bail!(
-                "--eval-metrics {}: PSNR and SSIM (3DGS convention) are always reported; it takes lpips, dists and wd",
-                m.name()
-            );
-        }
+        check_extra_metrics("--eval-metrics", &self.eval_metrics)?;
         Ok(self.eval.clone().map(|dir| EvalOptions {
             dir,
             metrics: self.eval_metrics.clone(),
@@ -304,12 +300,8 @@ impl EncodeArgs {
             ply: ply.to_path_buf(),
             stream: self.stream().context("--from-ply needs -o/--output for the stream")?,
             background: self.load.background,
-            orbit: self.orbit.map(|views| Orbit {
-                views,
-                up: self.up,
-                size: self.orbit_size,
-                renders: self.orbit_renders.clone(),
-            }),
+            orbit: self.orbit.map(|views| Orbit { views, up: self.up, size: self.orbit_size }),
+            orbit_renders: self.orbit_renders.clone(),
             report: self.report.clone(),
         })
     }

@@ -1,6 +1,7 @@
 //! `pwenc`: the pwgs encoder's command line.
 
 mod args;
+mod compare_args;
 mod values;
 mod wrapper_args;
 
@@ -13,9 +14,10 @@ use clap::parser::ValueSource;
 use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
-use pwgs_encoder::session::{encode_scene, import_ply, train_anchor_scene};
+use pwgs_encoder::session::{compare_models, encode_scene, import_ply, train_anchor_scene};
 
 use crate::args::{Base, EncodeArgs, LoadArgs};
+use crate::compare_args::CompareArgs;
 
 #[derive(Parser)]
 #[command(
@@ -67,6 +69,10 @@ enum Command {
         #[command(flatten)]
         load: LoadArgs,
     },
+    /// Score a model (a pwgs stream, or a splat file in any format --from reads) against a
+    /// reference model's renders on an orbit around the reference: PSNR, SSIM and --metrics,
+    /// per view and on average, with the compared file's size.
+    Compare(CompareArgs),
 }
 
 fn encode(args: EncodeArgs, matches: &ArgMatches) -> Result<()> {
@@ -116,6 +122,7 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
             }
             Ok(())
         }
+        Some(Command::Compare(args)) => compare_models(&args.job()?).map(drop),
         Some(Command::Inspect { scene, load }) => {
             let data = load.load(&scene)?;
             let first = &data.train[0];

@@ -2,6 +2,7 @@
 
 use pwgs_decoder::cli_values::three_numbers;
 use pwgs_encoder::anchor::train::StageTwoLambda;
+use pwgs_encoder::metrics::suite::Metric;
 
 pub(crate) fn parse_rate_pair(s: &str) -> Result<[f32; 2], String> {
     let parts: Option<Vec<f32>> = s.split(',').map(|p| p.trim().parse::<f32>().ok()).collect();
@@ -41,5 +42,19 @@ pub(crate) fn parse_stage_two_lambda(s: &str) -> Result<StageTwoLambda, String> 
     match s {
         "auto" => Ok(StageTwoLambda::Scaled),
         _ => parse_weight(s).map(StageTwoLambda::Times).map_err(|e| format!("{e}, nor `auto`")),
+    }
+}
+
+/// Refuses PSNR and SSIM in a list of extra metrics (`flag` names the option): every
+/// evaluation reports them already.
+pub(crate) fn check_extra_metrics(flag: &str, metrics: &[Metric]) -> anyhow::Result<()> {
+    match metrics.iter().find(|m| matches!(m, Metric::Psnr | Metric::Ssim | Metric::Ssim3dgs)) {
+        Some(m) => {
+            anyhow::bail!(
+                "{flag} {}: PSNR and SSIM (3DGS convention) are always reported; it takes lpips, dists and wd",
+                m.name()
+            )
+        }
+        None => Ok(()),
     }
 }

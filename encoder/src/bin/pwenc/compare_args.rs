@@ -1,0 +1,76 @@
+//! `pwenc compare`'s options.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use pwgs_decoder::cli_values::parse_vector;
+use pwgs_encoder::evaluate::EvalOptions;
+use pwgs_encoder::metrics::lpips::LpipsInput;
+use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};
+use pwgs_encoder::metrics::weights::default_dirs;
+use pwgs_encoder::session::{CompareJob, Orbit};
+
+use crate::values::{check_extra_metrics, parse_color};
+
+#[derive(Args)]
+pub(crate) struct CompareArgs {
+    /// The model whose renders are the ground truth (INRIA PLY, .splat or .spz).
+    reference: PathBuf,
+    /// The model to score: a pwgs stream (.pwb) or a splat file as for --from.
+    candidate: PathBuf,
+    /// Folder for the candidate's renders (orbit_NNN.png) and the reference's (gt/).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Report this file's size instead of the candidate's (the format's own file, when the
+    /// candidate is its conversion back to PLY).
+    #[arg(long)]
+    size_of: Option<PathBuf>,
+    /// Views on the orbit around the reference.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    orbit: u32,
+    /// Up direction of the orbit (`x,y,z`; captures in COLMAP conventions usually have -y up).
+    #[arg(long, default_value = "0,-1,0", value_parser = parse_vector)]
+    up: [f32; 3],
+    /// Width and height of the orbit views.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=8192))]
+    orbit_size: u32,
+    /// Background: `white`, `black` or `r,g,b`.
+    #[arg(long, default_value = "black", value_parser = parse_color)]
+    background: [f32; 3],
+    /// Metrics besides PSNR and SSIM (lpips, dists, wd).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    metrics: Vec<Metric>,
+    /// log2 of WD's pooling width σ for --metrics wd (0..=5).
+    #[arg(long, default_value_t = DEFAULT_WD_LOG2_SIGMA)]
+    wd_log2_sigma: f64,
+    /// A folder searched first for the metrics' weights (then $PWGS_WEIGHTS_DIR and the cache).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    /// Write the sizes and scores as JSON (the layout `pwbench` reads).
+    #[arg(long)]
+    report: Option<PathBuf>,
+}
+
+impl CompareArgs {
+    pub(crate) fn job(self) -> Result<CompareJob> {
+        check_extra_metrics("--metrics", &self.metrics)?;
+        Ok(CompareJob {
+            reference: self.reference,
+            candidate: self.candidate,
+            size_of: self.size_of,
+            orbit: Orbit { views: self.orbit as usize, up: self.up, size: self.orbit_size },
+            background: self.background,
+            eval: EvalOptions {
+                dir: self.output,
+                metrics: self.metrics,
+                settings: SuiteSettings {
+                    weights: self.weights.into_iter().chain(default_dirs()).collect(),
+                    wd_log2_sigma: self.wd_log2_sigma,
+                    lpips_input: LpipsInput::Official,
+                },
+            },
+            report: self.report,
+        })
+    }
+}

@@ -1,0 +1,110 @@
+//! `pwenc compare`: how closely a model in another form (a splat file in any format `--from`
+//! reads, or a pwgs stream) renders like a reference model, on an orbit of views around the
+//! reference. This is how streams are compared with other formats (SPZ, SOG, compressed PLY)
+//! at equal cameras; the report has the layout `pwbench` reads (the file's size as the
+//! stream's, mean and per-view scores), so formats and qualities plot as RD curves.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use glam::Vec3;
+use pwgs_dataset::View;
+use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::scene::{Base, Scene};
+use pwgs_decoder::stream;
+use serde::Serialize;
+
+use super::{Orbit, check_outputs, read_model, write_report};
+use crate::compress::StreamContext;
+use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use crate::fidelity::{orbit_cameras, renders};
+
+/// Everything a comparison does.
+#[derive(Debug, Clone)]
+pub struct CompareJob {
+    /// The model whose renders are the ground truth; the orbit circles it.
+    pub reference: PathBuf,
+    /// The model scored: a `.pwb` stream (shown as a decoder shows it) or a splat file.
+    pub candidate: PathBuf,
+    /// The file whose size the report gives (a format's own file, when the candidate is its
+    /// conversion back to PLY); by default the candidate's.
+    pub size_of: Option<PathBuf>,
+    pub orbit: Orbit,
+    pub background: [f32; 3],
+    /// Metrics besides PSNR and SSIM, and where the renders and their ground truth go
+    /// (`<dir>/orbit_NNN.png`, `<dir>/gt/orbit_NNN.png`).
+    pub eval: EvalOptions,
+    pub report: Option<PathBuf>,
+}
+
+/// A file and its size.
+#[derive(Serialize)]
+pub struct SizedFile {
+    pub path: String,
+    pub bytes: u64,
+}
+
+#[derive(Serialize)]
+pub struct CompareReport {
+    pub reference: String,
+    pub candidate: String,
+    /// The compared file's size (named `stream` as in `pwenc --report`, which `pwbench` reads).
+    pub stream: SizedFile,
+    pub orbit_views: usize,
+    pub orbit_size: u32,
+    pub mean: MeanScore,
+    pub views: Vec<ViewScore>,
+}
+
+pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
+    check_outputs(&job.report, [&job.eval.dir])?;
+    let evaluation = Evaluation::prepare(&job.eval)?;
+    let gaussians = read_model(&job.reference)?;
+    let context = StreamContext::from_gaussians(&gaussians, job.background);
+    let frame = pwgs_decoder::wrapper::SceneFrame { center: Vec3::from(context.center), scale: context.scale };
+    let reference = Scene { base: Base::Plain(gaussians), wrapper: None, frame, background: job.background };
+    let candidate = read_candidate(job, &reference)?;
+    let sized = job.size_of.as_ref().unwrap_or(&job.candidate);
+    let bytes = std::fs::metadata(sized).with_context(|| format!("cannot read {}", sized.display()))?.len();
+
+    let orbit = &job.orbit;
+    let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)?;
+    let options = RenderOptions { background: job.background, ..Default::default() };
+    let truths = renders(&reference, &cameras, &options);
+    let views: Vec<View> = cameras
+        .into_iter()
+        .zip(truths)
+        .enumerate()
+        .map(|(i, (camera, image))| View { name: format!("orbit_{i:03}"), camera, image })
+        .collect();
+    let (views, mean) = evaluation.run(&candidate, &views)?;
+    println!("{}: {bytes} bytes ({})", job.candidate.display(), sized.display());
+    let report = CompareReport {
+        reference: job.reference.display().to_string(),
+        candidate: job.candidate.display().to_string(),
+        stream: SizedFile { path: sized.display().to_string(), bytes },
+        orbit_views: views.len(),
+        orbit_size: orbit.size,
+        mean,
+        views,
+    };
+    if let Some(path) = &job.report {
+        write_report(path, &report)?;
+    }
+    Ok(report)
+}
+
+/// The candidate as a scene: a stream decoded, or a splat file read and rendered like the
+/// reference (its background and frame).
+fn read_candidate(job: &CompareJob, reference: &Scene) -> Result<Scene> {
+    let path = &job.candidate;
+    let is_stream = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("pwb"));
+    if is_stream {
+        let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let decoded =
+            stream::decode(&bytes).with_context(|| format!("{} is not a valid pwgs stream", path.display()))?;
+        return Ok(decoded.scene);
+    }
+    let gaussians = read_model(path)?;
+    Ok(Scene { base: Base::Plain(gaussians), wrapper: None, frame: reference.frame, background: reference.background })
+}
