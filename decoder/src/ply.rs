@@ -1,15 +1,17 @@
-//! PLY reading and writing for Gaussian splats (the INRIA 3DGS layout) and plain point clouds.
+//! PLY reading and writing for Gaussian splats (the INRIA 3DGS layout; PlayCanvas's compressed
+//! layout is read too) and plain point clouds.
 //!
 //! Properties are read by name, never by position, so files whose writers ordered them
 //! differently (or left out normals or `f_rest_*`) load the same. ASCII and both binary
 //! encodings are parsed, see [`vertex_table`] for how a hostile header or body is kept from
 //! causing harm.
 
+mod compressed;
 mod vertex_table;
 
 use std::path::Path;
 
-pub use vertex_table::{VertexTable, read_vertex_table};
+pub use vertex_table::{ElementTable, read_tables, read_vertex_table};
 
 use crate::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 
@@ -31,6 +33,8 @@ pub enum PlyProblem {
     Header { line: usize, message: String },
     #[error("the file has no `vertex` element")]
     NoVertexElement,
+    #[error("the file has no `{element}` element: {why}")]
+    MissingElement { element: String, why: String },
     #[error("vertex property `{0}` is missing")]
     MissingProperty(String),
     #[error("{0} f_rest_* properties do not make a whole SH degree up to {MAX_SH_DEGREE}")]
@@ -69,7 +73,8 @@ fn with_source<T>(name: &str, result: Result<T, PlyProblem>) -> Result<T, PlyErr
     result.map_err(|problem| PlyError { source_name: name.to_string(), problem })
 }
 
-/// Reads Gaussians from an INRIA-layout PLY file.
+/// Reads Gaussians from a PLY file: the INRIA layout, or the compressed layout of PlayCanvas's
+/// tools (see [`compressed`]).
 pub fn read_gaussians(path: &Path) -> Result<PlyGaussians, PlyError> {
     let name = path.display().to_string();
     let bytes = with_source(&name, std::fs::read(path).map_err(PlyProblem::from))?;
@@ -79,7 +84,11 @@ pub fn read_gaussians(path: &Path) -> Result<PlyGaussians, PlyError> {
 /// Reads Gaussians from PLY bytes. Non-finite values never reach the result: see
 /// [`PlyGaussians`] for what is dropped or clamped.
 pub fn gaussians_from_bytes(bytes: &[u8]) -> Result<PlyGaussians, PlyProblem> {
-    let table = read_vertex_table(bytes)?;
+    let tables = read_tables(bytes)?;
+    let table = tables.iter().find(|t| t.name == "vertex").ok_or(PlyProblem::NoVertexElement)?;
+    if compressed::is_compressed(table) {
+        return compressed::gaussians(&tables, table);
+    }
     let rest_count = (0..).take_while(|i| table.column(&format!("f_rest_{i}")).is_some()).count();
     // A gap in the numbering would otherwise silently drop the coefficients after it.
     let rest_names: Vec<String> = (0..rest_count).map(|i| format!("f_rest_{i}")).collect();

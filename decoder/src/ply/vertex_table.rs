@@ -1,5 +1,6 @@
-//! The generic part of PLY reading: the header, and the vertex element as columns of values by
-//! property name.
+//! The generic part of PLY reading: the header, and each element as columns of values by
+//! property name (the vertex element, and the others some layouts use, such as the per-chunk
+//! bounds of a compressed PLY).
 //!
 //! Every element before the vertex element is skipped properly, list properties included.
 //! Declared counts are checked against the bytes actually present before anything is
@@ -131,28 +132,29 @@ struct Element {
     properties: Vec<Property>,
 }
 
-/// One scalar property of the vertex element: its type and its values, one per row.
+/// One scalar property of an element: its type and its values, one per row.
 #[derive(Debug, Clone)]
 struct Column {
     ty: Scalar,
     values: Vec<f64>,
 }
 
-/// The vertex element of a PLY file, column by property name. Values are kept in f64 so that
-/// f32 and integer properties convert back exactly.
+/// An element of a PLY file, column by property name (list properties are skipped). Values are
+/// kept in f64 so that f32 and integer properties convert back exactly.
 #[derive(Debug, Clone)]
-pub struct VertexTable {
+pub struct ElementTable {
+    pub name: String,
     pub count: usize,
     columns: HashMap<String, Column>,
 }
 
-impl VertexTable {
+impl ElementTable {
     /// A column by property name.
     pub fn column(&self, name: &str) -> Option<&[f64]> {
         self.columns.get(name).map(|c| c.values.as_slice())
     }
 
-    /// Every property name of the vertex element (list properties excepted), in no order.
+    /// Every property name of the element (list properties excepted), in no order.
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.columns.keys().map(String::as_str)
     }
@@ -340,11 +342,19 @@ impl<'a> Cursor<'a> {
 }
 
 /// Reads the vertex element of a PLY file held in memory.
-pub fn read_vertex_table(bytes: &[u8]) -> Result<VertexTable, PlyProblem> {
+pub fn read_vertex_table(bytes: &[u8]) -> Result<ElementTable, PlyProblem> {
+    read_tables(bytes)?.into_iter().find(|t| t.name == "vertex").ok_or(PlyProblem::NoVertexElement)
+}
+
+/// Reads every element of a PLY file held in memory, in file order, up to and including the
+/// last one that has scalar properties (the data after it is not read).
+pub fn read_tables(bytes: &[u8]) -> Result<Vec<ElementTable>, PlyProblem> {
     let header = parse_header(bytes)?;
     let mut cursor = Cursor::new(header.encoding, &bytes[header.data_start..])?;
-    for element in &header.elements {
-        let is_vertex = element.name == "vertex";
+    let has_scalars = |e: &Element| e.properties.iter().any(|p| matches!(p, Property::Scalar { .. }));
+    let last = header.elements.iter().rposition(has_scalars);
+    let mut tables = Vec::new();
+    for element in &header.elements[..last.map_or(0, |i| i + 1)] {
         // Bound the allocation by what the file can hold.
         let min_bytes = element
             .properties
@@ -363,15 +373,11 @@ pub fn read_vertex_table(bytes: &[u8]) -> Result<VertexTable, PlyProblem> {
                 max_rows,
             });
         }
-        let mut columns: Vec<Column> = if is_vertex {
-            let scalars = element.properties.iter().filter_map(|p| match p {
-                Property::Scalar { ty, .. } => Some(Column { ty: *ty, values: Vec::with_capacity(element.count) }),
-                Property::List { .. } => None,
-            });
-            scalars.collect()
-        } else {
-            Vec::new()
-        };
+        let scalars = element.properties.iter().filter_map(|p| match p {
+            Property::Scalar { ty, .. } => Some(Column { ty: *ty, values: Vec::with_capacity(element.count) }),
+            Property::List { .. } => None,
+        });
+        let mut columns: Vec<Column> = scalars.collect();
         // Rows without properties hold nothing to read (and in ASCII no line to skip).
         let rows = if element.properties.is_empty() { 0 } else { element.count };
         for row in 0..rows {
@@ -388,10 +394,7 @@ pub fn read_vertex_table(bytes: &[u8]) -> Result<VertexTable, PlyProblem> {
             for property in &element.properties {
                 match property {
                     Property::Scalar { ty, .. } => {
-                        let value = read(&mut cursor, *ty)?;
-                        if is_vertex {
-                            columns[column].values.push(value);
-                        }
+                        columns[column].values.push(read(&mut cursor, *ty)?);
                         column += 1;
                     }
                     Property::List { name, count, item } => {
@@ -407,13 +410,12 @@ pub fn read_vertex_table(bytes: &[u8]) -> Result<VertexTable, PlyProblem> {
             }
             cursor.end_row().map_err(bad)?;
         }
-        if is_vertex {
-            let names = element.properties.iter().filter_map(|p| match p {
-                Property::Scalar { name, .. } => Some(name.clone()),
-                Property::List { .. } => None,
-            });
-            return Ok(VertexTable { count: element.count, columns: names.zip(columns).collect() });
-        }
+        let names = element.properties.iter().filter_map(|p| match p {
+            Property::Scalar { name, .. } => Some(name.clone()),
+            Property::List { .. } => None,
+        });
+        let columns = names.zip(columns).collect();
+        tables.push(ElementTable { name: element.name.clone(), count: element.count, columns });
     }
-    Err(PlyProblem::NoVertexElement)
+    Ok(tables)
 }

@@ -15,7 +15,7 @@ use crate::values::{check_extra_metrics, parse_color};
 
 #[derive(Args)]
 pub(crate) struct CompareArgs {
-    /// The model whose renders are the ground truth (INRIA PLY, .splat or .spz).
+    /// The model whose renders are the ground truth (a splat file as for --from).
     reference: PathBuf,
     /// The model to score: a pwgs stream (.pwb) or a splat file as for --from.
     candidate: PathBuf,
