@@ -123,19 +123,28 @@ pub fn gaussians_from_bytes(bytes: &[u8]) -> Result<PlyGaussians, PlyProblem> {
                 sh[k * 3 + c] = rest[c * (coeffs - 1) + k - 1][i] as f32;
             }
         }
-        let finite = mean.iter().chain(&log_scale).chain(&rotation).chain(&sh).all(|v| v.is_finite());
-        let mut logit = opacity[i] as f32;
-        if !finite || logit.is_nan() {
-            out.dropped_non_finite += 1;
-            continue;
-        }
-        if logit.is_infinite() {
-            logit = logit.signum() * OPACITY_LOGIT_LIMIT;
-            out.clamped_opacities += 1;
-        }
-        out.gaussians.push(mean, log_scale, rotation, logit, &sh);
+        out.push(mean, log_scale, rotation, opacity[i] as f32, &sh);
     }
     Ok(out)
+}
+
+impl PlyGaussians {
+    /// Adds a Gaussian as read, under the NaN policy: one with a non-finite value is dropped
+    /// (counted), an infinite opacity logit clamped (counted).
+    fn push(&mut self, mean: [f32; 3], log_scale: [f32; 3], rotation: [f32; 4], logit: f32, sh: &[f32]) {
+        let finite = mean.iter().chain(&log_scale).chain(&rotation).chain(sh).all(|v| v.is_finite());
+        if !finite || logit.is_nan() {
+            self.dropped_non_finite += 1;
+            return;
+        }
+        let logit = if logit.is_infinite() {
+            self.clamped_opacities += 1;
+            logit.signum() * OPACITY_LOGIT_LIMIT
+        } else {
+            logit
+        };
+        self.gaussians.push(mean, log_scale, rotation, logit, sh);
+    }
 }
 
 /// Property names of the INRIA layout for a given SH degree, in the order INRIA writes them.

@@ -6,7 +6,7 @@
 //! `packed_color` as 8-bit color fractions and opacity); and the higher SH coefficients as
 //! bytes in an optional `sh` element. It is recognized by the `packed_position` property.
 
-use super::{ElementTable, OPACITY_LOGIT_LIMIT, PlyGaussians, PlyProblem};
+use super::{ElementTable, PlyGaussians, PlyProblem};
 use crate::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 
 /// Gaussians per row of the `chunk` element.
@@ -151,17 +151,7 @@ pub(super) fn gaussians(tables: &[ElementTable], vertex: &ElementTable) -> Resul
             }
         }
         let alpha = unorm(rgba, 0, 8);
-        let mut logit = -(1.0 / alpha - 1.0).ln() as f32;
-        let finite = mean.iter().chain(&log_scale).chain(&coefficients).all(|v| v.is_finite());
-        if !finite {
-            out.dropped_non_finite += 1;
-            continue;
-        }
-        if logit.is_infinite() {
-            logit = logit.signum() * OPACITY_LOGIT_LIMIT;
-            out.clamped_opacities += 1;
-        }
-        out.gaussians.push(mean, log_scale, rotation, logit, &coefficients);
+        out.push(mean, log_scale, rotation, -(1.0 / alpha - 1.0).ln() as f32, &coefficients);
     }
     Ok(out)
 }

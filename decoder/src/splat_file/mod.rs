@@ -1,6 +1,7 @@
 //! Readers for the splat files people already have, beside the INRIA PLY: antimatter15's
-//! `.splat` (the web viewer's 32-byte records) and Niantic's `.spz` (quantized, gzip
-//! compressed), so that an existing model can be compressed without retraining.
+//! `.splat` (the web viewer's 32-byte records), Niantic's `.spz` (quantized, gzip
+//! compressed) and PlayCanvas's SOG (WebP images and codebooks), so that an existing model can
+//! be compressed without retraining.
 //!
 //! Every reader returns [`Gaussians`] in the convention of an INRIA PLY (3DGS training axes,
 //! log-scales, opacity logits, SH DC terms), which is what the rest of the project expects; the
@@ -11,6 +12,7 @@
 //! The `*_to_*_bytes` writers exist so that round trips can be tested without external files;
 //! they are small and write only what the readers need to be exercised.
 
+mod sog;
 mod splat;
 mod spz;
 
@@ -36,7 +38,7 @@ pub struct SplatFileError {
 pub enum SplatFileProblem {
     #[error("cannot read the file: {0}")]
     Io(#[from] std::io::Error),
-    #[error("unknown splat file type `{0}` (expected a .ply, .splat or .spz file name)")]
+    #[error("unknown splat file type `{0}` (expected a .ply, .splat, .spz or .sog file name, or a SOG's meta.json)")]
     UnknownFormat(String),
     #[error("{0}")]
     Ply(#[from] PlyProblem),
@@ -71,6 +73,8 @@ pub enum SplatFileProblem {
     BadExtension { offset: usize, message: String },
     #[error("SPZ coordinate system {0} is not supported (only the axis-flip family 1 to 8 is)")]
     CoordinateSystem(u32),
+    #[error("SOG {part}: {message}")]
+    Sog { part: String, message: String },
 }
 
 fn version_hint(version: u32) -> &'static str {
@@ -81,13 +85,14 @@ fn version_hint(version: u32) -> &'static str {
     }
 }
 
-/// Reads Gaussians from a `.ply` (INRIA layout), `.splat` or `.spz` file, chosen by the file
+/// Reads Gaussians from a `.ply` (INRIA or compressed layout), `.splat`, `.spz` or SOG (`.sog`
+/// archive, or a folder's `meta.json`) file, chosen by the file
 /// name's extension (case-insensitive): the formats carry no common magic, and a `.splat` file
 /// has none at all, so sniffing the content could not tell them apart reliably.
 ///
 /// A PLY's non-finite Gaussians are dropped and its infinite opacities clamped as
-/// [`crate::ply::read_gaussians`] does; the two other formats reject non-finite values, see
-/// their byte-level readers.
+/// [`crate::ply::read_gaussians`] does, and a SOG's Gaussians that use a null codebook entry
+/// are dropped; `.splat` and `.spz` reject non-finite values, see their byte-level readers.
 pub fn read_splat_file(path: &Path) -> Result<Gaussians, SplatFileError> {
     let name = path.display().to_string();
     let wrap = |problem: SplatFileProblem| SplatFileError { source_name: name.clone(), problem };
@@ -104,6 +109,7 @@ pub fn read_splat_file(path: &Path) -> Result<Gaussians, SplatFileError> {
             let bytes = std::fs::read(path).map_err(|e| wrap(e.into()))?;
             gaussians_from_spz_bytes(&bytes).map_err(wrap)
         }
+        "sog" | "json" => sog::read_sog(path).map_err(wrap),
         _ => Err(wrap(SplatFileProblem::UnknownFormat(extension))),
     }
 }

@@ -190,7 +190,7 @@ fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
 fn read_model(path: &Path) -> Result<Gaussians> {
     let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match extension.as_deref() {
-        Some("splat" | "spz") => Ok(pwgs_decoder::splat_file::read_splat_file(path)?),
+        Some("splat" | "spz" | "sog" | "json") => Ok(pwgs_decoder::splat_file::read_splat_file(path)?),
         _ => read_ply(path),
     }
 }
