@@ -57,7 +57,7 @@ pub enum SplatFileProblem {
     Gzip(std::io::Error),
     #[error("bad SPZ magic {found:#010x} (expected 0x5053474e, `NGSP`)")]
     BadMagic { found: u32 },
-    #[error("SPZ version {0} is not supported (this reader supports versions 2 and 3{hint})", hint = version_hint(*.0))]
+    #[error("SPZ version {0} is not supported (this reader supports versions 2 to 4{hint})", hint = version_hint(*.0))]
     UnsupportedVersion(u32),
     #[error("SH degree {0} in the SPZ header is out of range (SPZ allows 0 to 4)")]
     ShDegree(u8),
@@ -73,6 +73,8 @@ pub enum SplatFileProblem {
     BadExtension { offset: usize, message: String },
     #[error("SPZ coordinate system {0} is not supported (only the axis-flip family 1 to 8 is)")]
     CoordinateSystem(u32),
+    #[error("SPZ version 4 streams: {message}")]
+    BadStreams { message: String },
     #[error("SOG {part}: {message}")]
     Sog { part: String, message: String },
 }
@@ -80,7 +82,6 @@ pub enum SplatFileProblem {
 fn version_hint(version: u32) -> &'static str {
     match version {
         1 => "; version 1 stored float16 positions and was never released",
-        4 => "; version 4 stores zstd-compressed streams, which this reader cannot decompress yet",
         _ => "",
     }
 }

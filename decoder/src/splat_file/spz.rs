@@ -1,5 +1,7 @@
-//! Niantic's `.spz` format, versions 2 and 3: one gzip stream holding a 16-byte header and the
-//! quantized attributes, each attribute stored for all points before the next begins.
+//! Niantic's `.spz` format, versions 2 to 4: in versions 2 and 3 one gzip stream holding a
+//! 16-byte header and the quantized attributes, each attribute stored for all points before the
+//! next begins; in version 4 a plain header and each attribute block as its own zstd stream
+//! (see [`unpack_v4`]), the blocks' contents as in version 3.
 //!
 //! Header (little-endian): magic `0x5053474e` ("NGSP"), version u32, point count u32, SH
 //! degree u8 (0 to 4), fractional bits u8, flags u8 (0x1: trained with antialiasing, 0x2:
@@ -25,8 +27,9 @@
 //! may hold RDF data unmarked: nothing in such a file tells them apart, so they load upside
 //! down, as they do in Niantic's own current loader.
 //!
-//! Not supported: version 1 (float16 positions, never released), version 4 (zstd streams and
-//! a plaintext header; recognized and refused by name), the rotated-family coordinate systems.
+//! Not supported: version 1 (float16 positions, never released), the rotated-family coordinate
+//! systems. PlayCanvas's splat-transform (3.7.0) writes the PLY's axes unconverted and
+//! unmarked, so its files load upside down here, as the paragraph above says of unmarked RDF.
 //! The antialiasing flag is ignored: this project renders without the mip-splatting filter, so
 //! such a model looks slightly sharper here than in a viewer that applies it. SH degree 4
 //! files lose their fourth band, which this project does not carry (its maximum is degree 3).
@@ -118,7 +121,7 @@ fn read_up_to(reader: &mut impl Read, limit: u64) -> Result<Vec<u8>, SplatFilePr
     Ok(out)
 }
 
-/// Decodes SPZ bytes (versions 2 and 3) into Gaussians in the INRIA PLY convention; see the
+/// Decodes SPZ bytes (versions 2 to 4) into Gaussians in the INRIA PLY convention; see the
 /// module documentation for the layout and the axis conversion.
 ///
 /// The header's point count is checked against [`SPZ_MAX_DECOMPRESSED_BYTES`] before reading
@@ -128,10 +131,18 @@ fn read_up_to(reader: &mut impl Read, limit: u64) -> Result<Vec<u8>, SplatFilePr
 /// stores only small integers); opacity bytes 0 and 255 are moved half a step inside (0, 1).
 /// A header declaring zero points gives an empty set.
 pub fn gaussians_from_spz_bytes(bytes: &[u8]) -> Result<Gaussians, SplatFileProblem> {
-    if bytes.starts_with(b"NGSP") {
-        let version = if bytes.len() >= 8 { u32_at(bytes, 4) } else { 4 };
-        return Err(SplatFileProblem::UnsupportedVersion(version));
-    }
+    let (head, body) = if bytes.starts_with(b"NGSP") { unpack_v4(bytes)? } else { gunzip(bytes)? };
+    decode(&head, &body)
+}
+
+/// Bytes the blocks of `points` points of SH `degree` take, with rotations of `rot_bytes`.
+fn data_bytes(points: u32, degree: u32, rot_bytes: usize) -> u64 {
+    points as u64 * (9 + 1 + 3 + 3 + rot_bytes + 3 * sh_rest(degree)) as u64
+}
+
+/// Versions 2 and 3: the header and what follows it (the blocks, then any extension records)
+/// from the gzip stream, read no further than the header allows.
+fn gunzip(bytes: &[u8]) -> Result<(Vec<u8>, Vec<u8>), SplatFileProblem> {
     if !bytes.starts_with(&[0x1f, 0x8b]) {
         return Err(SplatFileProblem::NotSpz);
     }
@@ -148,21 +159,102 @@ pub fn gaussians_from_spz_bytes(bytes: &[u8]) -> Result<Gaussians, SplatFileProb
     if !(2..=3).contains(&version) {
         return Err(SplatFileProblem::UnsupportedVersion(version));
     }
-    let points = u32_at(&head, 8);
-    let (degree, fractional_bits, flags) = (head[12] as u32, head[13], head[14]);
+    let (points, degree) = (u32_at(&head, 8), head[12] as u32);
     if degree > 4 {
         return Err(SplatFileProblem::ShDegree(head[12]));
     }
-    let rot_bytes = rotation_bytes(version);
-    let per_point = (9 + 1 + 3 + 3 + rot_bytes + 3 * sh_rest(degree)) as u64;
-    let needed = points as u64 * per_point;
-    let has_extensions = flags & FLAG_EXTENSIONS != 0;
-    let allowance = if has_extensions { MAX_EXTENSION_BYTES } else { 0 };
+    let needed = data_bytes(points, degree, rotation_bytes(version));
+    let allowance = if head[14] & FLAG_EXTENSIONS != 0 { MAX_EXTENSION_BYTES } else { 0 };
     if needed + allowance > SPZ_MAX_DECOMPRESSED_BYTES {
         return Err(SplatFileProblem::TooLarge { points, needed, limit: SPZ_MAX_DECOMPRESSED_BYTES });
     }
     // One byte past what may follow tells trailing data apart from the end of the stream.
     let body = read_up_to(&mut reader, needed + allowance + 1)?;
+    Ok((head, body))
+}
+
+/// Version 4: a plain 32-byte header (version 3's 16 bytes, then the stream count u8 and the
+/// table of contents' offset u32), extension records up to the table, the table (per stream,
+/// compressed and decompressed sizes as u64), then one zstd stream per block in version 3's
+/// order. Returned as version 3's header and body (blocks, then the extension records), so
+/// that one decoder reads both.
+fn unpack_v4(bytes: &[u8]) -> Result<(Vec<u8>, Vec<u8>), SplatFileProblem> {
+    const V4_HEADER_BYTES: usize = 32;
+    if bytes.len() < V4_HEADER_BYTES {
+        let message = format!("the file's {} bytes end inside the 32-byte header", bytes.len());
+        return Err(SplatFileProblem::BadStreams { message });
+    }
+    let version = u32_at(bytes, 4);
+    if version != 4 {
+        return Err(SplatFileProblem::UnsupportedVersion(version));
+    }
+    let (points, degree) = (u32_at(bytes, 8), bytes[12] as u32);
+    if degree > 4 {
+        return Err(SplatFileProblem::ShDegree(bytes[12]));
+    }
+    let n = points as u64;
+    let mut sizes = vec![9 * n, n, 3 * n, 3 * n, 4 * n];
+    if degree > 0 {
+        sizes.push(3 * sh_rest(degree) as u64 * n);
+    }
+    let needed: u64 = sizes.iter().sum();
+    if needed > SPZ_MAX_DECOMPRESSED_BYTES {
+        return Err(SplatFileProblem::TooLarge { points, needed, limit: SPZ_MAX_DECOMPRESSED_BYTES });
+    }
+    let bad = |message: String| SplatFileProblem::BadStreams { message };
+    let (streams, toc) = (bytes[15] as usize, u32_at(bytes, 16) as usize);
+    if streams != sizes.len() {
+        return Err(bad(format!("{streams} streams for SH degree {degree} (expected {})", sizes.len())));
+    }
+    let data_start = toc.checked_add(16 * streams).filter(|&end| toc >= V4_HEADER_BYTES && end <= bytes.len());
+    let Some(mut at) = data_start else {
+        return Err(bad(format!("the table of contents at byte {toc} lies outside the {}-byte file", bytes.len())));
+    };
+    let extensions = &bytes[V4_HEADER_BYTES..toc];
+    if extensions.len() as u64 > MAX_EXTENSION_BYTES {
+        return Err(bad(format!("{} bytes of extension records", extensions.len())));
+    }
+    let mut body = Vec::with_capacity(needed as usize + extensions.len());
+    for (i, &size) in sizes.iter().enumerate() {
+        let entry = &bytes[toc + 16 * i..];
+        let u64_at = |k: usize| u64::from_le_bytes(entry[k..k + 8].try_into().expect("8 bytes"));
+        let (compressed, decompressed) = (u64_at(0), u64_at(8));
+        if decompressed != size {
+            return Err(bad(format!("stream {i} declares {decompressed} bytes, {size} expected for {points} points")));
+        }
+        let end = (at as u64).checked_add(compressed).filter(|&end| end <= bytes.len() as u64);
+        let Some(end) = end else {
+            return Err(bad(format!("stream {i} of {compressed} bytes at byte {at} runs past the end of the file")));
+        };
+        let decoder =
+            zstd::stream::read::Decoder::new(&bytes[at..end as usize]).map_err(|e| bad(format!("stream {i}: {e}")))?;
+        let before = body.len();
+        decoder.take(size + 1).read_to_end(&mut body).map_err(|e| bad(format!("stream {i}: {e}")))?;
+        if (body.len() - before) as u64 != size {
+            return Err(bad(format!("stream {i} holds {} bytes, {size} expected", body.len() - before)));
+        }
+        at = end as usize;
+    }
+    if at != bytes.len() {
+        return Err(SplatFileProblem::TrailingData { points });
+    }
+    body.extend_from_slice(extensions);
+    let mut head = bytes[..HEADER_BYTES].to_vec();
+    head[4..8].copy_from_slice(&3u32.to_le_bytes());
+    head[14] = (head[14] & !FLAG_EXTENSIONS) | if extensions.is_empty() { 0 } else { FLAG_EXTENSIONS };
+    head[15] = 0;
+    Ok((head, body))
+}
+
+/// The Gaussians of a version 2 or 3 header and its body (the blocks, then any extension
+/// records).
+fn decode(head: &[u8], body: &[u8]) -> Result<Gaussians, SplatFileProblem> {
+    let version = u32_at(head, 4);
+    let points = u32_at(head, 8);
+    let (degree, fractional_bits, flags) = (head[12] as u32, head[13], head[14]);
+    let rot_bytes = rotation_bytes(version);
+    let needed = data_bytes(points, degree, rot_bytes);
+    let has_extensions = flags & FLAG_EXTENSIONS != 0;
     if (body.len() as u64) < needed {
         return Err(SplatFileProblem::ShortData { points, needed, found: body.len() as u64 });
     }

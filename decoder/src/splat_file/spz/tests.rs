@@ -181,7 +181,69 @@ fn bad_headers_are_named() {
     // Version 4 keeps its header outside any compression.
     let v4 = [b"NGSP".as_slice(), &4u32.to_le_bytes(), &[0; 24]].concat();
     let err = gaussians_from_spz_bytes(&v4).unwrap_err().to_string();
-    assert!(err.contains("SPZ version 4 is not supported") && err.contains("zstd"), "{err}");
+    assert!(err.contains("0 streams for SH degree 0 (expected 5)"), "{err}");
+    let v5 = [b"NGSP".as_slice(), &5u32.to_le_bytes(), &[0; 24]].concat();
+    assert!(gaussians_from_spz_bytes(&v5).unwrap_err().to_string().contains("SPZ version 5 is not supported"));
+}
+
+/// Version 3 bytes rewritten as version 4: the plain header with the stream count and table
+/// offset, optional extension records, the table, and each block as its own zstd stream.
+fn to_v4(v3: &[u8], points: usize, degree: u32, extensions: &[u8]) -> Vec<u8> {
+    let raw = gunzip(v3);
+    let n = points;
+    let mut sizes = vec![9 * n, n, 3 * n, 3 * n, 4 * n];
+    if degree > 0 {
+        sizes.push(3 * (sh_coeff_count(degree) - 1) * n);
+    }
+    let mut at = HEADER_BYTES;
+    let streams: Vec<Vec<u8>> = sizes
+        .iter()
+        .map(|&size| {
+            at += size;
+            zstd::encode_all(&raw[at - size..at], 3).unwrap()
+        })
+        .collect();
+    let mut out = raw[..HEADER_BYTES].to_vec();
+    out[4..8].copy_from_slice(&4u32.to_le_bytes());
+    out[14] |= if extensions.is_empty() { 0 } else { FLAG_EXTENSIONS };
+    out[15] = streams.len() as u8;
+    out.extend_from_slice(&(32 + extensions.len() as u32).to_le_bytes());
+    out.resize(32, 0);
+    out.extend_from_slice(extensions);
+    for (stream, size) in streams.iter().zip(&sizes) {
+        out.extend_from_slice(&(stream.len() as u64).to_le_bytes());
+        out.extend_from_slice(&(*size as u64).to_le_bytes());
+    }
+    streams.iter().for_each(|s| out.extend_from_slice(s));
+    out
+}
+
+#[test]
+fn version_4_reads_as_version_3() {
+    for degree in [0, 2] {
+        let g = random_gaussians(&mut SplitMix64(30 + degree as u64), 70, degree, [-4.0, -1.0]);
+        let v3 = gaussians_to_spz_bytes(&g, SpzVersion::V3);
+        let expected = gaussians_from_spz_bytes(&v3).unwrap();
+        assert_eq!(gaussians_from_spz_bytes(&to_v4(&v3, 70, degree, &[])).unwrap(), expected, "degree {degree}");
+        // An axis convention in an extension record applies as in version 3: RDF is stored
+        // unflipped, so positions keep their y and z signs.
+        let rdf = [EXTENSION_COORDINATE_SYSTEM.to_le_bytes(), 4u32.to_le_bytes(), 2u32.to_le_bytes()].concat();
+        let flipped = gaussians_from_spz_bytes(&to_v4(&v3, 70, degree, &rdf)).unwrap();
+        assert_eq!(flipped.means[5][1], -expected.means[5][1], "degree {degree}");
+    }
+    let v3 = gaussians_to_spz_bytes(&random_gaussians(&mut SplitMix64(1), 20, 0, [-4.0, -1.0]), SpzVersion::V3);
+    let good = to_v4(&v3, 20, 0, &[]);
+    let message = |bytes: &[u8]| gaussians_from_spz_bytes(bytes).unwrap_err().to_string();
+    assert!(message(&good[..good.len() - 1]).contains("runs past the end of the file"));
+    assert!(message(&[&good[..], &[0]].concat()).contains("data continues after the 20 points"));
+    let mut wrong_size = good.clone();
+    wrong_size[32 + 8] ^= 1;
+    assert!(message(&wrong_size).contains("stream 0 declares 181 bytes, 180 expected"));
+    // The first stream's zstd magic number, after the header and the table of 5 entries.
+    let mut corrupt = good.clone();
+    corrupt[32 + 5 * 16] ^= 0xff;
+    assert!(message(&corrupt).contains("stream 0:"), "{}", message(&corrupt));
+    assert!(message(&good[..20]).contains("end inside the 32-byte header"));
 }
 
 #[test]

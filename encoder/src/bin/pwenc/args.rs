@@ -58,7 +58,7 @@ pub(crate) struct EncodeArgs {
     #[arg(required_unless_present = "from_ply")]
     pub(crate) scene: Option<PathBuf>,
     /// Compress a 3DGS model trained elsewhere instead of training one: a PLY (INRIA's layout
-    /// or PlayCanvas's compressed one), a `.splat`, an `.spz` (versions 2 and 3) or a SOG
+    /// or PlayCanvas's compressed one), a `.splat`, an `.spz` (versions 2 to 4) or a SOG
     /// (`.sog`, or the `meta.json` of an unbundled one), by extension.
     #[arg(long, visible_alias = "from", conflicts_with_all = ["scene", "init_ply", "eval"])]
     pub(crate) from_ply: Option<PathBuf>,
