@@ -48,6 +48,16 @@ for format in spz sog compressed.ply; do
     written[$format]=$file
 done
 
+# Our readers against splat-transform's: its conversion back to PLY is the reference, our
+# reading of its file the candidate (identical renders give PSNR inf). Its SPZ files store
+# the PLY's axes unmarked, hence --spz-axes rdf (ignored for the other formats).
+for format in spz sog compressed.ply; do
+    label=reader-${format//./-}
+    "$pwenc" compare "${written[$format]}.ply" "${written[$format]}" --spz-axes rdf --orbit 4 --orbit-size 256 \
+        --up "${UP:-0,-1,0}" -o "$dir/renders/$label" >"$dir/reports/$label.log"
+    echo "our $format reader against splat-transform's: $(grep -m1 'mean over' "$dir/reports/$label.log")"
+done
+
 compare() { # NAME CANDIDATE [SIZE_OF]
     local size_of=()
     [ $# -ge 3 ] && size_of=(--size-of "$3")

@@ -155,10 +155,22 @@ fn compresses_an_imported_ply() {
         let out = pwenc(&["--from", &path(input), "-o", &path("other.pwb")]);
         assert!(out.status.success(), "{input}: {}", String::from_utf8_lossy(&out.stderr));
         let decoded = pwgs_decoder::stream::decode(&std::fs::read(path("other.pwb")).unwrap()).unwrap();
-        let expected = pwgs_decoder::splat_file::read_splat_file(std::path::Path::new(&path(input))).unwrap();
+        let expected =
+            pwgs_decoder::splat_file::read_splat_file(std::path::Path::new(&path(input)), Default::default()).unwrap();
         assert_eq!(decoded.header.sh_degree, expected.sh_degree, "{input}");
         assert!(decoded.header.gaussian_count > 700, "{input}: {} Gaussians", decoded.header.gaussian_count);
     }
+    // An unmarked SPZ is read in RUB axes, or in a PLY's own (splat-transform's files) when asked.
+    let mut lifted = model.clone();
+    lifted.means.iter_mut().for_each(|m| m[1] += 5.0);
+    std::fs::write(path("lifted.spz"), gaussians_to_spz_bytes(&lifted, SpzVersion::V3)).unwrap();
+    let center_y = |axes: &[&str]| {
+        let out = pwenc(&[&["--from", &path("lifted.spz"), "-o", &path("axes.pwb")], axes].concat());
+        assert!(out.status.success(), "{axes:?}: {}", String::from_utf8_lossy(&out.stderr));
+        pwgs_decoder::stream::decode(&std::fs::read(path("axes.pwb")).unwrap()).unwrap().header.center[1]
+    };
+    let (rub, rdf) = (center_y(&[]), center_y(&["--spz-axes", "rdf"]));
+    assert!(rub > 4.0 && rdf < -4.0, "centers' y: {rub} (RUB), {rdf} (RDF)");
     std::fs::write(path("broken.spz"), b"not gzip").unwrap();
     let out = pwenc(&["--from", &path("broken.spz"), "-o", &path("broken.pwb")]);
     assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("broken.spz"));
@@ -229,6 +241,8 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec![scene, "--lambda", "0", "--context-planes", "6"], "--context-planes belongs to the context model"),
         (vec![scene, "--wrapper-lambda-scale", "twice"], "nor `auto`"),
         (vec![scene, "--base", "3dgs", "--wrapper-lambda-scale", "2"], "--wrapper-lambda-scale applies to the anchor"),
+        (vec![scene, "--spz-axes", "rdf"], "--spz-axes applies to --from-ply"),
+        (vec![scene, "--orbit", "4"], "--orbit applies to --from-ply"),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

@@ -6,7 +6,7 @@
 use libfuzzer_sys::fuzz_target;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::splat_file::{
-    SpzVersion, gaussians_from_splat_bytes, gaussians_from_spz_bytes, gaussians_to_splat_bytes,
+    SpzAxes, SpzVersion, gaussians_from_splat_bytes, gaussians_from_spz_bytes, gaussians_to_splat_bytes,
     gaussians_to_spz_bytes,
 };
 
@@ -24,9 +24,9 @@ fuzz_target!(|data: &[u8]| {
         let again = gaussians_from_splat_bytes(&gaussians_to_splat_bytes(&g)).expect("a written .splat reads");
         assert_eq!(again.len(), g.len());
     } else {
-        let Ok(g) = gaussians_from_spz_bytes(file) else { return };
+        let Ok(g) = gaussians_from_spz_bytes(file, SpzAxes::Rub) else { return };
         check(&g);
-        let again = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&g, SpzVersion::V3)).expect("a written .spz reads");
+        let again = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&g, SpzVersion::V3), SpzAxes::Rub).expect("a written .spz reads");
         assert_eq!(again.len(), g.len());
     }
 });

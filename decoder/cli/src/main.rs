@@ -1,6 +1,6 @@
 //! `pwdec`: the pwgs decoder's command line. Decodes a stream with the decoder library and
-//! renders views from camera files or a dataset's cameras, exports the Gaussians as a PLY, or
-//! prints what a stream holds.
+//! renders views from camera files or a dataset's cameras, exports the Gaussians as a PLY or
+//! an SPZ, or prints what a stream holds.
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -12,10 +12,12 @@ use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_dataset::{LoadOptions, load_cameras};
 use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians, sphere_cameras};
+use pwgs_decoder::atomic_file::write_atomically;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::scene::{Base, Scene};
+use pwgs_decoder::splat_file::{SpzVersion, gaussians_to_spz_bytes};
 use pwgs_decoder::stream;
 use pwgs_decoder::stream::anchor_context::CONTEXT;
 use pwgs_decoder::stream::header::{BaseKind, Header};
@@ -77,9 +79,15 @@ struct DecodeArgs {
     /// around the scene), and the PSNR of the export against the anchor renders is printed.
     #[arg(long)]
     export_ply: Option<PathBuf>,
-    /// With --export-ply of an anchor base: fit the colors over this scene folder's training
-    /// cameras (at --downscale), as the encoder saw them.
-    #[arg(long, requires = "export_ply")]
+    /// Write the decoded Gaussians (exported as for --export-ply) as a Niantic SPZ file,
+    /// version 3, in the RUB axes the format specifies: positions to 1/4096 (fewer fractional
+    /// bits where a coordinate needs them), rotations as "smallest three", the other values in
+    /// 8 bits, which viewers of the format open.
+    #[arg(long)]
+    export_spz: Option<PathBuf>,
+    /// With --export-ply or --export-spz of an anchor base: fit the colors over this scene
+    /// folder's training cameras (at --downscale), as the encoder saw them.
+    #[arg(long)]
     fit_views: Option<PathBuf>,
     /// Show the base render only, without the perceptual wrapper the stream carries.
     #[arg(long)]
@@ -185,8 +193,12 @@ fn print_info(path: &Path, bytes: &[u8], container: &Container, header: &stream:
 }
 
 fn decode(args: DecodeArgs) -> Result<()> {
-    if args.view.is_none() && args.views.is_none() && args.export_ply.is_none() && !args.hash {
-        bail!("nothing to do: give --view, --views, --export-ply or --hash (or run `pwdec info STREAM`)");
+    let exports = args.export_ply.is_some() || args.export_spz.is_some();
+    if args.view.is_none() && args.views.is_none() && !exports && !args.hash {
+        bail!("nothing to do: give --view, --views, --export-ply, --export-spz or --hash (or run `pwdec info STREAM`)");
+    }
+    if args.fit_views.is_some() && !exports {
+        bail!("--fit-views applies to --export-ply and --export-spz, and neither is given");
     }
     if let Some(threads) = args.threads {
         rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build_global().context("cannot start threads")?;
@@ -204,7 +216,7 @@ fn decode(args: DecodeArgs) -> Result<()> {
     if args.hash {
         println!("{}", scene.attribute_hash());
     }
-    if let Some(ply) = &args.export_ply {
+    if exports {
         let exported;
         let gaussians = match &scene.base {
             Base::Plain(g) => g,
@@ -213,8 +225,15 @@ fn decode(args: DecodeArgs) -> Result<()> {
                 &exported
             }
         };
-        pwgs_decoder::ply::write_gaussians(ply, gaussians)?;
-        eprintln!("wrote {}", ply.display());
+        if let Some(ply) = &args.export_ply {
+            pwgs_decoder::ply::write_gaussians(ply, gaussians)?;
+            eprintln!("wrote {}", ply.display());
+        }
+        if let Some(spz) = &args.export_spz {
+            let bytes = gaussians_to_spz_bytes(gaussians, SpzVersion::V3);
+            write_atomically(spz, &bytes).with_context(|| format!("cannot write {}", spz.display()))?;
+            eprintln!("wrote {} ({} bytes, SPZ version 3)", spz.display(), bytes.len());
+        }
     }
     if let Some(view) = &args.view {
         let text = std::fs::read_to_string(view).with_context(|| format!("cannot read {}", view.display()))?;
@@ -287,7 +306,7 @@ fn export_anchors(
         }
     };
     if cameras.is_empty() {
-        bail!("--export-ply: no cameras to fit the anchor base's colors over");
+        bail!("--export-ply/--export-spz: no cameras to fit the anchor base's colors over");
     }
     let export = export_gaussians(model, &cameras);
     let psnr = agreement_psnr(model, &export, &checked, &scene.render_options());

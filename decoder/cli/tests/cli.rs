@@ -50,6 +50,30 @@ fn renders_views_exports_ply_and_prints_info() {
     }
 }
 
+/// `--export-spz`: the library's SPZ writer on the decoded Gaussians, which the SPZ reader
+/// reads back to the same Gaussians within the format's quantization.
+#[test]
+fn exports_spz() {
+    use pwgs_decoder::splat_file::{SpzAxes, SpzVersion, gaussians_from_spz_bytes, gaussians_to_spz_bytes};
+    let tmp = tempfile::tempdir().unwrap();
+    let stream = vector("stream.pwb");
+    let spz = tmp.path().join("model.spz");
+    let out = pwdec(&[stream.to_str().unwrap(), "--export-spz", spz.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("SPZ version 3"), "{out:?}");
+    let decoded = pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap();
+    let gaussians = decoded.scene.plain_gaussians().unwrap();
+    let bytes = std::fs::read(&spz).unwrap();
+    assert_eq!(bytes, gaussians_to_spz_bytes(gaussians, SpzVersion::V3));
+    let back = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap();
+    assert_eq!((back.len(), back.sh_degree), (gaussians.len(), gaussians.sh_degree));
+    let gap = back.means.iter().flatten().zip(gaussians.means.iter().flatten()).map(|(a, b)| (a - b).abs());
+    assert!(gap.fold(0.0, f32::max) <= 0.5 / 4096.0 + 1e-6, "positions beyond half a step of 2^-12");
+
+    let err = pwdec(&[stream.to_str().unwrap(), "--hash", "--fit-views", "scene"]);
+    assert!(!err.status.success());
+    assert!(String::from_utf8_lossy(&err.stderr).contains("--fit-views applies to --export-ply and --export-spz"));
+}
+
 /// An anchor stream: its hash with any thread count, its info, and its export as standard
 /// Gaussians of SH degree 3 with the agreement it states.
 #[test]

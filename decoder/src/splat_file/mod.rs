@@ -19,7 +19,7 @@ mod spz;
 use std::path::Path;
 
 pub use splat::{SPLAT_MIN_LOG_SCALE, SPLAT_RECORD_BYTES, gaussians_from_splat_bytes, gaussians_to_splat_bytes};
-pub use spz::{SPZ_MAX_DECOMPRESSED_BYTES, SpzVersion, gaussians_from_spz_bytes, gaussians_to_spz_bytes};
+pub use spz::{SPZ_MAX_DECOMPRESSED_BYTES, SpzAxes, SpzVersion, gaussians_from_spz_bytes, gaussians_to_spz_bytes};
 
 use crate::gaussians::Gaussians;
 use crate::ply::PlyProblem;
@@ -94,7 +94,8 @@ fn version_hint(version: u32) -> &'static str {
 /// A PLY's non-finite Gaussians are dropped and its infinite opacities clamped as
 /// [`crate::ply::read_gaussians`] does, and a SOG's Gaussians that use a null codebook entry
 /// are dropped; `.splat` and `.spz` reject non-finite values, see their byte-level readers.
-pub fn read_splat_file(path: &Path) -> Result<Gaussians, SplatFileError> {
+/// An `.spz` that names no coordinate system is taken to store `spz_axes`.
+pub fn read_splat_file(path: &Path, spz_axes: SpzAxes) -> Result<Gaussians, SplatFileError> {
     let name = path.display().to_string();
     let wrap = |problem: SplatFileProblem| SplatFileError { source_name: name.clone(), problem };
     let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
@@ -108,7 +109,7 @@ pub fn read_splat_file(path: &Path) -> Result<Gaussians, SplatFileError> {
         }
         "spz" => {
             let bytes = std::fs::read(path).map_err(|e| wrap(e.into()))?;
-            gaussians_from_spz_bytes(&bytes).map_err(wrap)
+            gaussians_from_spz_bytes(&bytes, spz_axes).map_err(wrap)
         }
         "sog" | "json" => sog::read_sog(path).map_err(wrap),
         _ => Err(wrap(SplatFileProblem::UnknownFormat(extension))),
@@ -139,9 +140,9 @@ mod tests {
         crate::ply::write_gaussians(&ply, &g).unwrap();
         std::fs::write(&splat, gaussians_to_splat_bytes(&g)).unwrap();
         std::fs::write(&spz, gaussians_to_spz_bytes(&g, SpzVersion::V3)).unwrap();
-        assert_eq!(read_splat_file(&ply).unwrap(), g, "a PLY round trip is exact");
-        let from_splat = read_splat_file(&splat).unwrap();
-        let from_spz = read_splat_file(&spz).unwrap();
+        assert_eq!(read_splat_file(&ply, SpzAxes::Rub).unwrap(), g, "a PLY round trip is exact");
+        let from_splat = read_splat_file(&splat, SpzAxes::Rub).unwrap();
+        let from_spz = read_splat_file(&spz, SpzAxes::Rub).unwrap();
         for read in [&from_splat, &from_spz] {
             assert_eq!(read.len(), g.len());
             for (a, b) in read.means.iter().zip(&g.means) {
@@ -150,7 +151,10 @@ mod tests {
         }
         // The content decides nothing: SPZ bytes under a .splat name are not read as SPZ.
         std::fs::write(&splat, gaussians_to_spz_bytes(&g, SpzVersion::V3)).unwrap();
-        assert!(read_splat_file(&splat).is_err_and(|e| matches!(e.problem, SplatFileProblem::SplatLength { .. })));
+        assert!(
+            read_splat_file(&splat, SpzAxes::Rub)
+                .is_err_and(|e| matches!(e.problem, SplatFileProblem::SplatLength { .. }))
+        );
     }
 
     #[test]
@@ -158,21 +162,21 @@ mod tests {
         let tmp = tempfile::tempdir().unwrap();
         let unknown = tmp.path().join("scene.glb");
         std::fs::write(&unknown, b"glTF").unwrap();
-        let err = read_splat_file(&unknown).unwrap_err().to_string();
+        let err = read_splat_file(&unknown, SpzAxes::Rub).unwrap_err().to_string();
         assert!(err.contains("scene.glb") && err.contains("unknown splat file type `glb`"), "{err}");
 
         let missing = tmp.path().join("missing.spz");
-        let err = read_splat_file(&missing).unwrap_err().to_string();
+        let err = read_splat_file(&missing, SpzAxes::Rub).unwrap_err().to_string();
         assert!(err.contains("missing.spz: cannot read the file"), "{err}");
 
         let short = tmp.path().join("short.splat");
         std::fs::write(&short, [0u8; 40]).unwrap();
-        let err = read_splat_file(&short).unwrap_err().to_string();
+        let err = read_splat_file(&short, SpzAxes::Rub).unwrap_err().to_string();
         assert!(err.contains("short.splat") && err.contains("40 bytes") && err.contains("8 bytes over"), "{err}");
 
         let bad_ply = tmp.path().join("bad.ply");
         std::fs::write(&bad_ply, b"not a ply").unwrap();
-        let err = read_splat_file(&bad_ply).unwrap_err().to_string();
+        let err = read_splat_file(&bad_ply, SpzAxes::Rub).unwrap_err().to_string();
         assert!(err.contains("bad.ply") && err.contains("not a PLY file"), "{err}");
     }
 }

@@ -24,12 +24,12 @@
 //! `SPZ_ADOBE_coordinate_system` extension record (type 0xADBE0003) names another storage
 //! convention; the axis-flip ones (codes 1 to 8) are converted the same way, the rotated ones
 //! (9 to 16) are refused. Files written before the public library declared RUB (late 2024)
-//! may hold RDF data unmarked: nothing in such a file tells them apart, so they load upside
-//! down, as they do in Niantic's own current loader.
+//! may hold RDF data unmarked, and PlayCanvas's splat-transform (3.7.0) still writes the PLY's
+//! axes unconverted and unmarked: nothing in such a file tells it from a RUB one, so the axes
+//! of unmarked files are the caller's choice ([`SpzAxes`]), RUB by default as the format says.
 //!
 //! Not supported: version 1 (float16 positions, never released), the rotated-family coordinate
-//! systems. PlayCanvas's splat-transform (3.7.0) writes the PLY's axes unconverted and
-//! unmarked, so its files load upside down here, as the paragraph above says of unmarked RDF.
+//! systems.
 //! The antialiasing flag is ignored: this project renders without the mip-splatting filter, so
 //! such a model looks slightly sharper here than in a viewer that applies it. SH degree 4
 //! files lose their fourth band, which this project does not carry (its maximum is degree 3).
@@ -53,6 +53,7 @@ const EXTENSION_COORDINATE_SYSTEM: u32 = 0xADBE_0003;
 /// SPZ's coordinate-system codes: 1 to 8 spell the axis directions, with bit 0 of `code - 1`
 /// meaning x points right, bit 1 y up, bit 2 z forward.
 const RUB: u32 = 4;
+const RDF: u32 = 6;
 const COLOR_SCALE: f32 = 0.15;
 const SQRT_HALF: f32 = std::f32::consts::FRAC_1_SQRT_2;
 /// Opacities are kept half a quantization step inside (0, 1) so that the bytes 0 and 255 give
@@ -61,6 +62,28 @@ const ALPHA_MIN: f32 = 0.5 / 255.0;
 /// Per SH coefficient k = 1..=15 (3DGS order), the axes in which its basis function is odd
 /// (bit 0: x, bit 1: y, bit 2: z); reflecting those axes negates the coefficient.
 const SH_ODD_AXES: [u8; 15] = [2, 4, 1, 3, 6, 0, 5, 0, 2, 7, 2, 4, 1, 4, 1];
+
+/// The axes an SPZ file is taken to store when no coordinate-system record names them (or
+/// the record says "unspecified").
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum SpzAxes {
+    /// RUB (x right, y up, z back): what the format specifies and Niantic's library writes.
+    #[default]
+    Rub,
+    /// RDF (x right, y down, z forward): an INRIA PLY's own axes, which PlayCanvas's
+    /// splat-transform (3.7.0) and files older than late 2024 store unconverted.
+    Rdf,
+}
+
+impl SpzAxes {
+    /// The SPZ coordinate-system code of these axes.
+    fn code(self) -> u32 {
+        match self {
+            Self::Rub => RUB,
+            Self::Rdf => RDF,
+        }
+    }
+}
 
 /// The SPZ versions [`gaussians_to_spz_bytes`] can write.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -129,10 +152,11 @@ fn read_up_to(reader: &mut impl Read, limit: u64) -> Result<Vec<u8>, SplatFilePr
 /// header cannot cause a large allocation. Data after the points is an error unless the header
 /// announces extension records. Every decoded value is finite by construction (the format
 /// stores only small integers); opacity bytes 0 and 255 are moved half a step inside (0, 1).
-/// A header declaring zero points gives an empty set.
-pub fn gaussians_from_spz_bytes(bytes: &[u8]) -> Result<Gaussians, SplatFileProblem> {
+/// A header declaring zero points gives an empty set. A file that names no coordinate system
+/// is taken to store `unmarked` axes.
+pub fn gaussians_from_spz_bytes(bytes: &[u8], unmarked: SpzAxes) -> Result<Gaussians, SplatFileProblem> {
     let (head, body) = if bytes.starts_with(b"NGSP") { unpack_v4(bytes)? } else { gunzip(bytes)? };
-    decode(&head, &body)
+    decode(&head, &body, unmarked.code())
 }
 
 /// Bytes the blocks of `points` points of SH `degree` take, with rotations of `rot_bytes`.
@@ -247,8 +271,8 @@ fn unpack_v4(bytes: &[u8]) -> Result<(Vec<u8>, Vec<u8>), SplatFileProblem> {
 }
 
 /// The Gaussians of a version 2 or 3 header and its body (the blocks, then any extension
-/// records).
-fn decode(head: &[u8], body: &[u8]) -> Result<Gaussians, SplatFileProblem> {
+/// records); `unmarked` is the coordinate-system code of a file whose records name none.
+fn decode(head: &[u8], body: &[u8], unmarked: u32) -> Result<Gaussians, SplatFileProblem> {
     let version = u32_at(head, 4);
     let points = u32_at(head, 8);
     let (degree, fractional_bits, flags) = (head[12] as u32, head[13], head[14]);
@@ -261,8 +285,8 @@ fn decode(head: &[u8], body: &[u8]) -> Result<Gaussians, SplatFileProblem> {
     let (data, rest) = body.split_at(needed as usize);
     let flips = match has_extensions {
         false if !rest.is_empty() => return Err(SplatFileProblem::TrailingData { points }),
-        false => AxisFlips::from_stored(RUB)?,
-        true => AxisFlips::from_stored(stored_coordinate_system(rest)?)?,
+        false => AxisFlips::from_stored(unmarked)?,
+        true => AxisFlips::from_stored(stored_coordinate_system(rest)?.unwrap_or(unmarked))?,
     };
 
     let n = points as usize;
@@ -305,14 +329,15 @@ fn decode(head: &[u8], body: &[u8]) -> Result<Gaussians, SplatFileProblem> {
     Ok(g)
 }
 
-/// The coordinate-system code the extension records name, RUB if none does. Each record is a
-/// u32 type, a u32 payload length and the payload; records of other types are skipped.
-fn stored_coordinate_system(records: &[u8]) -> Result<u32, SplatFileProblem> {
+/// The coordinate-system code the extension records name, if one does (code 0, "unspecified",
+/// names none). Each record is a u32 type, a u32 payload length and the payload; records of
+/// other types are skipped.
+fn stored_coordinate_system(records: &[u8]) -> Result<Option<u32>, SplatFileProblem> {
     if records.len() as u64 > MAX_EXTENSION_BYTES {
         let message = format!("the extension block exceeds {MAX_EXTENSION_BYTES} bytes");
         return Err(SplatFileProblem::BadExtension { offset: 0, message });
     }
-    let (mut offset, mut code) = (0, RUB);
+    let (mut offset, mut code) = (0, None);
     while offset < records.len() {
         let bad = |message: String| SplatFileProblem::BadExtension { offset, message };
         let left = records.len() - offset;
@@ -327,11 +352,7 @@ fn stored_coordinate_system(records: &[u8]) -> Result<u32, SplatFileProblem> {
             if len != 4 {
                 return Err(bad(format!("the coordinate-system record has {len} payload bytes instead of 4")));
             }
-            // Code 0 means "unspecified", which SPZ reads as its default.
-            code = match u32_at(records, offset + 8) {
-                0 => RUB,
-                stored => stored,
-            };
+            code = Some(u32_at(records, offset + 8)).filter(|&stored| stored != 0);
         }
         offset += 8 + len;
     }

@@ -11,6 +11,7 @@ use glam::Vec3;
 use pwgs_dataset::View;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::scene::{Base, Scene};
+use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream;
 use serde::Serialize;
 
@@ -29,6 +30,8 @@ pub struct CompareJob {
     /// The file whose size the report gives (a format's own file, when the candidate is its
     /// conversion back to PLY); by default the candidate's.
     pub size_of: Option<PathBuf>,
+    /// The axes of `.spz` files that name none.
+    pub spz_axes: SpzAxes,
     pub orbit: Orbit,
     pub background: [f32; 3],
     /// Metrics besides PSNR and SSIM, and where the renders and their ground truth go
@@ -59,7 +62,7 @@ pub struct CompareReport {
 pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
     check_outputs(&job.report, [&job.eval.dir])?;
     let evaluation = Evaluation::prepare(&job.eval)?;
-    let gaussians = read_model(&job.reference)?;
+    let gaussians = read_model(&job.reference, job.spz_axes)?;
     let context = StreamContext::from_gaussians(&gaussians, job.background);
     let frame = pwgs_decoder::wrapper::SceneFrame { center: Vec3::from(context.center), scale: context.scale };
     let reference = Scene { base: Base::Plain(gaussians), wrapper: None, frame, background: job.background };
@@ -105,6 +108,6 @@ fn read_candidate(job: &CompareJob, reference: &Scene) -> Result<Scene> {
             stream::decode(&bytes).with_context(|| format!("{} is not a valid pwgs stream", path.display()))?;
         return Ok(decoded.scene);
     }
-    let gaussians = read_model(path)?;
+    let gaussians = read_model(path, job.spz_axes)?;
     Ok(Scene { base: Base::Plain(gaussians), wrapper: None, frame: reference.frame, background: reference.background })
 }

@@ -7,6 +7,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::scene::{Base, Scene};
+use pwgs_decoder::splat_file::SpzAxes;
 use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};
@@ -27,6 +28,8 @@ pub struct Orbit {
 #[derive(Debug, Clone)]
 pub struct ImportJob {
     pub ply: PathBuf,
+    /// The axes of an `.spz` input that names none.
+    pub spz_axes: SpzAxes,
     pub stream: StreamOptions,
     pub background: [f32; 3],
     pub orbit: Option<Orbit>,
@@ -51,7 +54,7 @@ pub struct ImportReport {
 pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
     check_outputs([&job.stream.path].into_iter().chain(&job.report), &job.orbit_renders)?;
     let ply = &job.ply;
-    let gaussians = read_model(ply)?;
+    let gaussians = read_model(ply, job.spz_axes)?;
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
     let context = StreamContext::from_gaussians(&gaussians, job.background);
     let (compressed, stream) = write_stream(&gaussians, &context, &job.stream, None)?;

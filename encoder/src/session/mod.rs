@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use pwgs_bitstream::Container;
 use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
@@ -184,13 +185,13 @@ fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Reads an INRIA PLY, saying what had to be repaired.
-/// A model trained elsewhere: an INRIA PLY (see [`read_ply`]), or antimatter15's `.splat` or
-/// Niantic's `.spz` (see [`pwgs_decoder::splat_file`]), chosen by the file's extension.
-fn read_model(path: &Path) -> Result<Gaussians> {
+/// A model trained elsewhere: an INRIA PLY (see [`read_ply`]), or antimatter15's `.splat`,
+/// Niantic's `.spz` (unmarked ones taken to store `spz_axes`) or PlayCanvas's SOG (see
+/// [`pwgs_decoder::splat_file`]), chosen by the file's extension.
+fn read_model(path: &Path, spz_axes: SpzAxes) -> Result<Gaussians> {
     let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match extension.as_deref() {
-        Some("splat" | "spz" | "sog" | "json") => Ok(pwgs_decoder::splat_file::read_splat_file(path)?),
+        Some("splat" | "spz" | "sog" | "json") => Ok(pwgs_decoder::splat_file::read_splat_file(path, spz_axes)?),
         _ => read_ply(path),
     }
 }

@@ -57,7 +57,7 @@ fn assert_close(actual: &[f32], expected: &[f32], tolerance: f32) {
 #[test]
 fn stored_rub_axes_are_read_as_ply_axes() {
     let bytes = gzip(&[header(3, 1, 1, 0), hand_made_body()].concat());
-    let g = gaussians_from_spz_bytes(&bytes).unwrap();
+    let g = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap();
     assert_eq!(g.means, [[1.0, -2.0, 3.0]]);
     assert_eq!(g.log_scales, [[0.0, -10.0, 255.0 / 16.0 - 10.0]]);
     assert_close(&g.rotations[0], &[SQRT_HALF, 0.0, -SQRT_HALF, 0.0], 1e-6);
@@ -71,9 +71,27 @@ fn stored_rub_axes_are_read_as_ply_axes() {
 }
 
 #[test]
+fn unmarked_files_are_read_in_the_axes_the_caller_names() {
+    // Without records, and with a record saying "unspecified" (code 0).
+    let plain = gzip(&[header(3, 1, 1, 0), hand_made_body()].concat());
+    let unspecified = gzip(&[header(3, 1, 1, 2), hand_made_body(), coordinate_record(0)].concat());
+    for bytes in [&plain, &unspecified] {
+        let rdf = gaussians_from_spz_bytes(bytes, SpzAxes::Rdf).unwrap();
+        assert_eq!(rdf.means, [[1.0, 2.0, -3.0]], "stored as the PLY's axes: nothing flips");
+        assert_close(&rdf.rotations[0], &[SQRT_HALF, 0.0, SQRT_HALF, 0.0], 1e-6);
+        assert_close(&rdf.sh[3..], &[0.5, 0.5, 0.5, -0.5, -0.5, -0.5, 0.25, 0.25, 0.25], 1e-6);
+        assert_eq!(gaussians_from_spz_bytes(bytes, SpzAxes::Rub).unwrap().means, [[1.0, -2.0, 3.0]]);
+    }
+    // A record naming the axes wins over the caller's choice.
+    let marked_rub = gzip(&[header(3, 1, 1, 2), hand_made_body(), coordinate_record(4)].concat());
+    assert_eq!(gaussians_from_spz_bytes(&marked_rub, SpzAxes::Rdf).unwrap().means, [[1.0, -2.0, 3.0]]);
+}
+
+#[test]
 fn the_coordinate_system_extension_selects_the_axis_flips() {
-    let read =
-        |records: Vec<u8>| gaussians_from_spz_bytes(&gzip(&[header(3, 1, 1, 2), hand_made_body(), records].concat()));
+    let read = |records: Vec<u8>| {
+        gaussians_from_spz_bytes(&gzip(&[header(3, 1, 1, 2), hand_made_body(), records].concat()), SpzAxes::Rub)
+    };
     // Stored RDF: nothing to convert. An unknown record before it is skipped.
     let unknown: Vec<u8> = [0x1234_0001u32, 3].iter().flat_map(|v| v.to_le_bytes()).chain([9, 9, 9]).collect();
     let g = read([unknown, coordinate_record(6)].concat()).unwrap();
@@ -109,7 +127,7 @@ fn round_trips_are_within_the_quantization() {
     for (version, rotation_tolerance) in [(SpzVersion::V3, 3e-3), (SpzVersion::V2, 0.12)] {
         for degree in 0..=3 {
             let g = random_gaussians(&mut SplitMix64(100 + degree as u64), 200, degree, [-5.0, 0.0]);
-            let back = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&g, version)).unwrap();
+            let back = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&g, version), SpzAxes::Rub).unwrap();
             assert!(back.is_consistent() && back.len() == g.len() && back.sh_degree == degree);
             let (mut worst_rotation, coeffs) = (0.0f32, sh_coeff_count(degree) * 3);
             for i in 0..g.len() {
@@ -130,9 +148,10 @@ fn round_trips_are_within_the_quantization() {
 fn every_truncation_is_an_error() {
     let g = random_gaussians(&mut SplitMix64(9), 3, 1, [-3.0, -1.0]);
     let bytes = gaussians_to_spz_bytes(&g, SpzVersion::V3);
-    assert!(gaussians_from_spz_bytes(&bytes).is_ok());
+    assert!(gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).is_ok());
     for len in 0..bytes.len() {
-        let err = gaussians_from_spz_bytes(&bytes[..len]).expect_err(&format!("{len} bytes were accepted"));
+        let err =
+            gaussians_from_spz_bytes(&bytes[..len], SpzAxes::Rub).expect_err(&format!("{len} bytes were accepted"));
         let expected = match len {
             0..=1 => matches!(err, SplatFileProblem::NotSpz),
             _ => matches!(err, SplatFileProblem::Gzip(_)),
@@ -142,7 +161,8 @@ fn every_truncation_is_an_error() {
     // A complete gzip stream holding a truncated SPZ.
     let raw = gunzip(&bytes);
     for len in 0..raw.len() {
-        let err = gaussians_from_spz_bytes(&gzip(&raw[..len])).expect_err(&format!("{len} raw bytes were accepted"));
+        let err = gaussians_from_spz_bytes(&gzip(&raw[..len]), SpzAxes::Rub)
+            .expect_err(&format!("{len} raw bytes were accepted"));
         let expected = match len {
             0..HEADER_BYTES => matches!(err, SplatFileProblem::ShortHeader { found } if found == len),
             _ => matches!(err, SplatFileProblem::ShortData { points: 3, needed, found }
@@ -159,7 +179,7 @@ fn bad_headers_are_named() {
     let edit = |at: usize, value: &[u8]| {
         let mut r = raw.clone();
         r[at..at + value.len()].copy_from_slice(value);
-        gaussians_from_spz_bytes(&gzip(&r)).unwrap_err().to_string()
+        gaussians_from_spz_bytes(&gzip(&r), SpzAxes::Rub).unwrap_err().to_string()
     };
     assert_eq!(edit(0, b"NGSQ"), "bad SPZ magic 0x5153474e (expected 0x5053474e, `NGSP`)");
     for version in [0u32, 1, 4, 5] {
@@ -180,10 +200,12 @@ fn bad_headers_are_named() {
 
     // Version 4 keeps its header outside any compression.
     let v4 = [b"NGSP".as_slice(), &4u32.to_le_bytes(), &[0; 24]].concat();
-    let err = gaussians_from_spz_bytes(&v4).unwrap_err().to_string();
+    let err = gaussians_from_spz_bytes(&v4, SpzAxes::Rub).unwrap_err().to_string();
     assert!(err.contains("0 streams for SH degree 0 (expected 5)"), "{err}");
     let v5 = [b"NGSP".as_slice(), &5u32.to_le_bytes(), &[0; 24]].concat();
-    assert!(gaussians_from_spz_bytes(&v5).unwrap_err().to_string().contains("SPZ version 5 is not supported"));
+    assert!(
+        gaussians_from_spz_bytes(&v5, SpzAxes::Rub).unwrap_err().to_string().contains("SPZ version 5 is not supported")
+    );
 }
 
 /// Version 3 bytes rewritten as version 4: the plain header with the stream count and table
@@ -223,17 +245,21 @@ fn version_4_reads_as_version_3() {
     for degree in [0, 2] {
         let g = random_gaussians(&mut SplitMix64(30 + degree as u64), 70, degree, [-4.0, -1.0]);
         let v3 = gaussians_to_spz_bytes(&g, SpzVersion::V3);
-        let expected = gaussians_from_spz_bytes(&v3).unwrap();
-        assert_eq!(gaussians_from_spz_bytes(&to_v4(&v3, 70, degree, &[])).unwrap(), expected, "degree {degree}");
+        let expected = gaussians_from_spz_bytes(&v3, SpzAxes::Rub).unwrap();
+        assert_eq!(
+            gaussians_from_spz_bytes(&to_v4(&v3, 70, degree, &[]), SpzAxes::Rub).unwrap(),
+            expected,
+            "degree {degree}"
+        );
         // An axis convention in an extension record applies as in version 3: RDF is stored
         // unflipped, so positions keep their y and z signs.
         let rdf = [EXTENSION_COORDINATE_SYSTEM.to_le_bytes(), 4u32.to_le_bytes(), 2u32.to_le_bytes()].concat();
-        let flipped = gaussians_from_spz_bytes(&to_v4(&v3, 70, degree, &rdf)).unwrap();
+        let flipped = gaussians_from_spz_bytes(&to_v4(&v3, 70, degree, &rdf), SpzAxes::Rub).unwrap();
         assert_eq!(flipped.means[5][1], -expected.means[5][1], "degree {degree}");
     }
     let v3 = gaussians_to_spz_bytes(&random_gaussians(&mut SplitMix64(1), 20, 0, [-4.0, -1.0]), SpzVersion::V3);
     let good = to_v4(&v3, 20, 0, &[]);
-    let message = |bytes: &[u8]| gaussians_from_spz_bytes(bytes).unwrap_err().to_string();
+    let message = |bytes: &[u8]| gaussians_from_spz_bytes(bytes, SpzAxes::Rub).unwrap_err().to_string();
     assert!(message(&good[..good.len() - 1]).contains("runs past the end of the file"));
     assert!(message(&[&good[..], &[0]].concat()).contains("data continues after the 20 points"));
     let mut wrong_size = good.clone();
@@ -248,13 +274,13 @@ fn version_4_reads_as_version_3() {
 
 #[test]
 fn garbage_is_an_error() {
-    assert!(matches!(gaussians_from_spz_bytes(b""), Err(SplatFileProblem::NotSpz)));
-    assert!(matches!(gaussians_from_spz_bytes(b"ply\nformat"), Err(SplatFileProblem::NotSpz)));
+    assert!(matches!(gaussians_from_spz_bytes(b"", SpzAxes::Rub), Err(SplatFileProblem::NotSpz)));
+    assert!(matches!(gaussians_from_spz_bytes(b"ply\nformat", SpzAxes::Rub), Err(SplatFileProblem::NotSpz)));
     let mut rng = SplitMix64(1);
     for len in [2, 10, 100, 1000] {
         let mut bytes: Vec<u8> = (0..len).map(|_| rng.next_u64() as u8).collect();
         bytes[..2].copy_from_slice(&[0x1f, 0x8b]);
-        let err = gaussians_from_spz_bytes(&bytes).unwrap_err();
+        let err = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap_err();
         assert!(matches!(err, SplatFileProblem::Gzip(_)), "{len}: {err}");
     }
 }
@@ -276,7 +302,7 @@ fn corrupt_files_never_panic() {
                 corrupt[at] = rng.next_u64() as u8;
             }
             let corrupt = if trial % 2 == 0 { corrupt } else { gzip(&corrupt) };
-            match gaussians_from_spz_bytes(&corrupt) {
+            match gaussians_from_spz_bytes(&corrupt, SpzAxes::Rub) {
                 Ok(back) => {
                     accepted += 1;
                     assert!(back.is_consistent());
@@ -295,7 +321,7 @@ fn corrupt_files_never_panic() {
 fn degree_four_loses_its_fourth_band_and_empty_files_are_empty() {
     let g = random_gaussians(&mut SplitMix64(8), 4, 3, [-3.0, -1.0]);
     let bytes = gaussians_to_spz_bytes(&g, SpzVersion::V3);
-    let degree3 = gaussians_from_spz_bytes(&bytes).unwrap();
+    let degree3 = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap();
     let raw = gunzip(&bytes);
     let (sh_start, per_point) = (HEADER_BYTES + 4 * (9 + 1 + 3 + 3 + 4), 45);
     let mut degree4 = raw[..sh_start].to_vec();
@@ -304,9 +330,11 @@ fn degree_four_loses_its_fourth_band_and_empty_files_are_empty() {
         degree4.extend_from_slice(point);
         degree4.extend_from_slice(&[200; 27]);
     }
-    assert_eq!(gaussians_from_spz_bytes(&gzip(&degree4)).unwrap(), degree3);
+    assert_eq!(gaussians_from_spz_bytes(&gzip(&degree4), SpzAxes::Rub).unwrap(), degree3);
 
-    let empty = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&Gaussians::with_degree(2), SpzVersion::V2)).unwrap();
+    let empty =
+        gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&Gaussians::with_degree(2), SpzVersion::V2), SpzAxes::Rub)
+            .unwrap();
     assert!(empty.is_empty() && empty.sh_degree == 2);
 }
 
@@ -316,6 +344,6 @@ fn the_writer_chooses_fractional_bits_that_fit() {
     g.means[1] = [5000.0, -3000.0, 0.25];
     let bytes = gaussians_to_spz_bytes(&g, SpzVersion::V3);
     assert_eq!(gunzip(&bytes)[13], 10, "2^10 * 5000 fits 24 bits, 2^11 * 5000 does not");
-    let back = gaussians_from_spz_bytes(&bytes).unwrap();
+    let back = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap();
     assert_close(&back.means[1], &g.means[1], 0.5 / 1024.0);
 }

@@ -18,7 +18,7 @@ use pwgs_encoder::session::{AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions
 use pwgs_encoder::train::TrainConfig;
 
 use crate::values::{
-    check_extra_metrics, parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight,
+    SpzAxesArg, check_extra_metrics, parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight,
 };
 use crate::wrapper_args::WrapperArgs;
 
@@ -40,6 +40,8 @@ const ANCHOR_ONLY: &[&str] = &[
 ];
 /// Options of training on a scene, besides the wrapper's, which `--from-ply` does not read.
 const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
+/// Options only `--from-ply` reads (its input and its orbit check).
+const IMPORT_ONLY: &[&str] = &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders"];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Base {
@@ -62,6 +64,12 @@ pub(crate) struct EncodeArgs {
     /// (`.sog`, or the `meta.json` of an unbundled one), by extension.
     #[arg(long, visible_alias = "from", conflicts_with_all = ["scene", "init_ply", "eval"])]
     pub(crate) from_ply: Option<PathBuf>,
+    /// The axes of an `.spz` input that names no coordinate system: `rub` as the format
+    /// specifies (Niantic's files), `rdf` for a PLY's own axes, which PlayCanvas's
+    /// splat-transform (3.7.0) writes unconverted and unmarked (its files load upside down
+    /// otherwise).
+    #[arg(long, value_enum, default_value = "rub")]
+    spz_axes: SpzAxesArg,
     /// Write the stream here.
     #[arg(short, long)]
     output: Option<PathBuf>,
@@ -76,7 +84,7 @@ pub(crate) struct EncodeArgs {
     target_bytes: Option<u64>,
     /// With --from-ply: render this many views on an orbit around the model, from the input and
     /// from the decoded stream, and report the PSNR between them.
-    #[arg(long, requires = "from_ply")]
+    #[arg(long)]
     orbit: Option<usize>,
     /// Up direction of the orbit (`x,y,z`; captures in COLMAP conventions usually have -y up).
     #[arg(long, default_value = "0,-1,0", value_parser = parse_vector)]
@@ -232,8 +240,11 @@ impl EncodeArgs {
                 (ANCHOR_ONLY.to_vec(), "applies to the anchor base; this run trains plain Gaussians (--base 3dgs)")
             }
         };
-        match ignored.into_iter().find(|id| given(id)) {
-            Some(id) => bail!("{} {why}", spelling(id)),
+        if let Some(id) = ignored.into_iter().find(|id| given(id)) {
+            bail!("{} {why}", spelling(id));
+        }
+        match IMPORT_ONLY.iter().find(|id| self.from_ply.is_none() && given(id)) {
+            Some(id) => bail!("{} applies to --from-ply; this run trains on a scene", spelling(id)),
             None => Ok(()),
         }
     }
@@ -299,6 +310,7 @@ impl EncodeArgs {
     pub(crate) fn import_job(&self, ply: &Path) -> Result<ImportJob> {
         Ok(ImportJob {
             ply: ply.to_path_buf(),
+            spz_axes: self.spz_axes.into(),
             stream: self.stream().context("--from-ply needs -o/--output for the stream")?,
             background: self.load.background,
             orbit: self.orbit.map(|views| Orbit { views, up: self.up, size: self.orbit_size }),

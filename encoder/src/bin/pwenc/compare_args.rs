@@ -11,7 +11,7 @@ use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings}
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::session::{CompareJob, Orbit};
 
-use crate::values::{check_extra_metrics, parse_color};
+use crate::values::{SpzAxesArg, check_extra_metrics, parse_color};
 
 #[derive(Args)]
 pub(crate) struct CompareArgs {
@@ -26,6 +26,12 @@ pub(crate) struct CompareArgs {
     /// candidate is its conversion back to PLY).
     #[arg(long)]
     size_of: Option<PathBuf>,
+    /// The axes of `.spz` files (reference or candidate) that names no coordinate system: `rub` as the format
+    /// specifies (Niantic's files), `rdf` for a PLY's own axes, which PlayCanvas's
+    /// splat-transform (3.7.0) writes unconverted and unmarked (its files load upside down
+    /// otherwise).
+    #[arg(long, value_enum, default_value = "rub")]
+    spz_axes: SpzAxesArg,
     /// Views on the orbit around the reference.
     #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=1024))]
     orbit: u32,
@@ -59,6 +65,7 @@ impl CompareArgs {
             reference: self.reference,
             candidate: self.candidate,
             size_of: self.size_of,
+            spz_axes: self.spz_axes.into(),
             orbit: Orbit { views: self.orbit as usize, up: self.up, size: self.orbit_size },
             background: self.background,
             eval: EvalOptions {

@@ -1,6 +1,8 @@
 //! Parsers of pwenc's option values, each refusing what the option cannot mean.
 
+use clap::ValueEnum;
 use pwgs_decoder::cli_values::three_numbers;
+use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_encoder::anchor::train::StageTwoLambda;
 use pwgs_encoder::metrics::suite::Metric;
 
@@ -56,5 +58,22 @@ pub(crate) fn check_extra_metrics(flag: &str, metrics: &[Metric]) -> anyhow::Res
             )
         }
         None => Ok(()),
+    }
+}
+
+/// `--spz-axes`: the axes an `.spz` stores when it names none (the format says RUB;
+/// splat-transform 3.7.0 writes a PLY's own axes, RDF, unmarked).
+#[derive(Clone, Copy, ValueEnum)]
+pub(crate) enum SpzAxesArg {
+    Rub,
+    Rdf,
+}
+
+impl From<SpzAxesArg> for SpzAxes {
+    fn from(axes: SpzAxesArg) -> Self {
+        match axes {
+            SpzAxesArg::Rub => SpzAxes::Rub,
+            SpzAxesArg::Rdf => SpzAxes::Rdf,
+        }
     }
 }
