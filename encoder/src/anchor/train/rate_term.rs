@@ -60,8 +60,12 @@ impl AnchorTrainer {
     }
 
     /// Mean bits per stored value: features and scaling of every anchor with an open mask,
-    /// offsets of every open mask (gated, so that their bits reach the masks), over all N x
-    /// (F + 6 + 3K) values.
+    /// offsets of every open mask, over all N x (F + 6 + 3K) values. Both are gated so that
+    /// their bits reach the masks: an offset's through its own mask, an anchor's features and
+    /// scaling through the mean of its masks (HAC++'s adaptive anchor mask), so that the rate
+    /// can shut an anchor whose Gaussians are not worth the anchor's own values. With the
+    /// anchor's bits held constant, as before, the last open mask of an anchor cost only its
+    /// three offsets.
     pub(super) fn mean_bits(
         &self,
         attributes: &[Tensor<2>],
@@ -88,6 +92,9 @@ impl AnchorTrainer {
         };
         let anchor_open: Vec<f32> = masks.chunks_exact(k).map(|m| f32::from(u8::from(m.iter().any(|&o| o)))).collect();
         let anchor_open = host_tensor(&anchor_open, [n, 1], &self.positions.device()).autodiff();
+        // Straight through: 1 or 0 forward (any mask open), the masks' mean backward.
+        let share = gate.clone().mean_dim(1);
+        let anchor_gate = share.clone() - share.detach() + anchor_open;
         let (mean, scale) = model(0);
         let features = factorized_bits(attributes[0].clone(), mean, scale, steps[0].clone()).sum_dim(1);
         let (mean, scale) = model(1);
@@ -98,7 +105,53 @@ impl AnchorTrainer {
             None => factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps[2].clone()),
         };
         let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
-        let total = ((features + scaling) * anchor_open + offsets).sum();
+        let total = ((features + scaling) * anchor_gate + offsets).sum();
         total / self.rated_values() as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use burn::tensor::activation::sigmoid;
+    use pwgs_dataset::synthetic::{SyntheticOptions, generate};
+    use pwgs_dataset::{LoadOptions, load_scene};
+
+    use super::super::MASK_LOGITS;
+    use super::*;
+    use crate::anchor::init::{AnchorShape, initial_model};
+
+    /// Of two anchors alike but for their features, the masks of the one whose features cost
+    /// more bits are pushed harder towards shutting: an anchor's own bits reach its masks.
+    #[test]
+    fn an_anchors_own_bits_reach_its_masks() {
+        let tmp = tempfile::tempdir().unwrap();
+        let options = SyntheticOptions { width: 32, height: 24, views: 2, seed: 5, points: 300 };
+        generate(tmp.path(), &options).unwrap();
+        let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
+        let (f, k) = (4, 2);
+        let shape = AnchorShape { feature_dim: f, offsets_per_anchor: k, voxel: 0.05 * data.normalization.scale };
+        let (mut model, _) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+        assert!(model.len() >= 2);
+        model.scaling[1] = model.scaling[0];
+        model.offsets.copy_within(0..3 * k, 3 * k);
+        model.features[..f].fill(0.0);
+        model.features[f..2 * f].fill(30.0);
+        let trainer = AnchorTrainer::new(&model, &data, 10, [0.0; 3], 0)
+            .unwrap()
+            .with_quantization_noise(AnchorSteps::default(), 0)
+            .with_rate(1.0, 0);
+        let tracked: Vec<Tensor<2>> = trainer.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
+        let steps = trainer.step_tensors(&tracked).unwrap();
+        let masks = trainer.open_masks();
+        let soft = sigmoid(tracked[MASK_LOGITS].clone());
+        let hard: Vec<f32> = masks.iter().map(|&m| f32::from(u8::from(m))).collect();
+        let hard = host_tensor(&hard, [model.len(), k], &trainer.device()).autodiff();
+        let gate = soft.clone() - soft.detach() + hard;
+        let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks);
+        let grads = bits.backward();
+        let g = tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap());
+        let (cheap, costly) = (g[0] + g[1], g[2] + g[3]);
+        assert!(cheap > 0.0, "shutting a mask saves bits: {:?}", &g[..4]);
+        assert!(costly > 2.0 * cheap, "the costly features' bits do not reach the masks: {:?}", &g[..4]);
     }
 }
