@@ -26,7 +26,8 @@ fuzz_target!(|data: &[u8]| {
     } else {
         let Ok(g) = gaussians_from_spz_bytes(file, SpzAxes::Rub) else { return };
         check(&g);
-        let again = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&g, SpzVersion::V3), SpzAxes::Rub).expect("a written .spz reads");
+        let again = gaussians_from_spz_bytes(&gaussians_to_spz_bytes(&g, SpzVersion::V3), SpzAxes::Rub)
+            .expect("a written .spz reads");
         assert_eq!(again.len(), g.len());
     }
 });
