@@ -170,6 +170,15 @@ pub(crate) fn pixel_loss(image: Tensor<3>, target: Tensor<3>) -> Tensor<1> {
     l1 * 0.8 + (structural.neg() + 1.0) * 0.2
 }
 
+/// Straight-through masks [N, K] from their logits: `masks` (1 or 0) forward, the sigmoid's
+/// gradient backward.
+fn mask_gate(logits: Tensor<2>, masks: &[bool]) -> Tensor<2> {
+    let soft = sigmoid(logits);
+    let hard: Vec<f32> = masks.iter().map(|&m| f32::from(u8::from(m))).collect();
+    let hard = host_tensor(&hard, soft.dims(), &soft.device()).autodiff();
+    soft.clone() - soft.detach() + hard
+}
+
 /// relu(x W1 + b1) W2 + b2 for rows x.
 fn forward(x: Tensor<2>, t: &[Tensor<2>]) -> Tensor<2> {
     (x.matmul(t[0].clone()) + t[1].clone()).clamp_min(0.0).matmul(t[2].clone()) + t[3].clone()
@@ -401,11 +410,7 @@ impl AnchorTrainer {
         let lambda = self.lambda();
         let masks = if lambda.is_some() { self.open_masks() } else { self.masks.clone() };
         let open_masks = masks.iter().filter(|&&m| m).count();
-        // Straight-through masks: 1 or 0 forward, sigmoid's gradient backward.
-        let soft_masks = sigmoid(tracked[MASK_LOGITS].clone());
-        let hard_masks =
-            host_tensor(&masks.iter().map(|&m| f32::from(u8::from(m))).collect::<Vec<_>>(), [n, k], &device);
-        let mask_gate = soft_masks.clone() - soft_masks.detach() + hard_masks.autodiff();
+        let mask_gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
         // The kept neural Gaussians: positive opacity and an open mask.
         let alpha_host = tensor_values(alpha.clone().inner());
         let kept: Vec<i64> = (0..n * k).filter(|&j| masks[j] && alpha_host[j] > 0.0).map(|j| j as i64).collect();

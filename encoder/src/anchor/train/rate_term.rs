@@ -112,11 +112,10 @@ impl AnchorTrainer {
 
 #[cfg(test)]
 mod tests {
-    use burn::tensor::activation::sigmoid;
     use pwgs_dataset::synthetic::{SyntheticOptions, generate};
     use pwgs_dataset::{LoadOptions, load_scene};
 
-    use super::super::MASK_LOGITS;
+    use super::super::{MASK_LOGITS, mask_gate};
     use super::*;
     use crate::anchor::init::{AnchorShape, initial_model};
 
@@ -143,10 +142,7 @@ mod tests {
         let tracked: Vec<Tensor<2>> = trainer.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
         let steps = trainer.step_tensors(&tracked).unwrap();
         let masks = trainer.open_masks();
-        let soft = sigmoid(tracked[MASK_LOGITS].clone());
-        let hard: Vec<f32> = masks.iter().map(|&m| f32::from(u8::from(m))).collect();
-        let hard = host_tensor(&hard, [model.len(), k], &trainer.device()).autodiff();
-        let gate = soft.clone() - soft.detach() + hard;
+        let gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
         let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks);
         let grads = bits.backward();
         let g = tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap());

@@ -26,10 +26,10 @@ pub(crate) struct CompareArgs {
     /// candidate is its conversion back to PLY).
     #[arg(long)]
     size_of: Option<PathBuf>,
-    /// The axes of `.spz` files (reference or candidate) that names no coordinate system: `rub` as the format
-    /// specifies (Niantic's files), `rdf` for a PLY's own axes, which PlayCanvas's
-    /// splat-transform (3.7.0) writes unconverted and unmarked (its files load upside down
-    /// otherwise).
+    /// The axes of `.spz` files (reference or candidate) that name no coordinate system: `rub`
+    /// as the format specifies (Niantic's files), `rdf` for a PLY's own axes, which
+    /// PlayCanvas's splat-transform (3.7.0) writes unconverted and unmarked (its files load
+    /// upside down otherwise).
     #[arg(long, value_enum, default_value = "rub")]
     spz_axes: SpzAxesArg,
     /// Views on the orbit around the reference.
