@@ -121,6 +121,17 @@ pub fn bytes_at(curve: &[RdPoint], quality: f64) -> Option<f64> {
     (lo..=hi).contains(&quality).then(|| 10f64.powf(interpolant.at(quality)))
 }
 
+/// The quality `curve` has at `bytes`, interpolated as BD-quality interpolates (quality against
+/// log rate); `None` outside the sizes the curve spans, or with fewer than 2 points. This is the
+/// equal-size comparison of a single run against a curve: what the curve's codec would score
+/// with a stream exactly as large.
+pub fn quality_at(curve: &[RdPoint], bytes: f64) -> Option<f64> {
+    let interpolant = Pchip::new(curve.iter().map(|p| (p.bytes.log10(), p.quality)).collect())?;
+    let (lo, hi) = interpolant.range();
+    let x = bytes.log10();
+    (lo..=hi).contains(&x).then(|| interpolant.at(x))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -192,5 +203,20 @@ mod tests {
         assert_eq!(at(19.9), None);
         assert_eq!(at(40.1), None);
         assert_eq!(bytes_at(&c[..1], 20.0), None);
+    }
+
+    #[test]
+    fn quality_at_a_size_follows_the_curve_and_stops_at_its_ends() {
+        // 10 units of quality per decade of bytes: linear in log rate, so exact between points.
+        let c = curve(&[(1e3, 20.0), (1e4, 30.0), (1e5, 40.0)]);
+        let at = |b| quality_at(&c, b);
+        assert!((at(10f64.powf(3.5)).unwrap() - 25.0).abs() < 1e-9);
+        assert!((at(1e5).unwrap() - 40.0).abs() < 1e-9);
+        assert_eq!(at(999.0), None);
+        assert_eq!(at(1.001e5), None);
+        assert_eq!(quality_at(&c[..1], 1e3), None);
+        // A curve whose quality falls with size (a distance, lower is better) works the same way.
+        let falling = curve(&[(1e3, 0.2), (1e4, 0.1)]);
+        assert!((quality_at(&falling, 10f64.powf(3.5)).unwrap() - 0.15).abs() < 1e-9);
     }
 }

@@ -1,5 +1,6 @@
 //! The report: `report.md` with the runs, the Bjøntegaard deltas of every curve against the
-//! reference curve, each other run's size against the reference at equal score, one RD chart
+//! reference curve, each other run's size against the reference at equal score and its scores
+//! against the reference at equal size, one RD chart
 //! per metric, speed-versus-error charts (render and training time against PSNR and DISTS) and
 //! every run's per-view scores, the charts beside it.
 
@@ -8,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 
-use crate::bjontegaard::{RdPoint, bd_quality, bd_rate, bytes_at};
+use crate::bjontegaard::{RdPoint, bd_quality, bd_rate, bytes_at, quality_at};
 use crate::plot::chart;
 use crate::runs::{Axis, Curve, Metric};
 
@@ -122,6 +123,31 @@ fn equal_score_table(curves: &[Curve], reference: &Curve) -> String {
     s
 }
 
+/// For each run of the other curves, the score `reference` has at the run's size, and the
+/// difference: the equal-size comparison (say, a wrapper run against the base's curve) without
+/// needing a second run of exactly that size. PSNR differs in dB, the other metrics in percent.
+fn equal_size_table(curves: &[Curve], reference: &Curve) -> String {
+    let mut s = format!(
+        "| curve | bytes | metric | score | `{}` at that size | difference |\n|---|---|---|---|---|---|\n",
+        reference.name
+    );
+    for c in curves.iter().filter(|c| c.name != reference.name) {
+        for r in &c.runs {
+            for m in Metric::ALL {
+                let Some(score) = r.score(m) else { continue };
+                let d = digits(m);
+                let (at, change) = match quality_at(&rd_points(reference, m), r.bytes) {
+                    Some(q) if m == Metric::Psnr => (format!("{q:.d$}"), format!("{:+.2} dB", score - q)),
+                    Some(q) => (format!("{q:.d$}"), format!("{:+.1}%", (score / q - 1.0) * 100.0)),
+                    None => ("outside its range".into(), "-".into()),
+                };
+                let _ = writeln!(s, "| {} | {:.0} | {} | {score:.d$} | {at} | {change} |", c.name, r.bytes, m.label());
+            }
+        }
+    }
+    s
+}
+
 /// Writes the charts and `report.md` into `dir` (created if needed); returns the report's path.
 pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -140,6 +166,13 @@ pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path
          (as BD-rate interpolates; a curve of 2 runs or more).\n\n{}",
         reference.name,
         equal_score_table(curves, reference)
+    );
+    let _ = writeln!(
+        md,
+        "## Scores at equal size\n\nEach run of the other curves against `{}` interpolated at the run's size \
+         (as BD-PSNR interpolates; a curve of 2 runs or more).\n\n{}",
+        reference.name,
+        equal_size_table(curves, reference)
     );
     md.push_str("## Rate-distortion charts\n\n");
     for m in Metric::ALL {

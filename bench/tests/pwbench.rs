@@ -66,6 +66,14 @@ fn the_report_states_the_deltas_the_curves_were_made_with() {
     assert!(row.ends_with("| 26.50 | 200000 | 0.50 |"), "{row}");
     let row = equal.lines().find(|l| l.starts_with("| half | 200000 | DISTS |")).unwrap_or_else(|| panic!("{md}"));
     assert!(row.ends_with("| 0.1000 | 400000 | 0.50 |"), "{row}");
+    // Each run of "half" against "base" at its own size: base's own points where they coincide.
+    let equal = md.split("## Scores at equal size").nth(1).unwrap_or_else(|| panic!("{md}"));
+    let row = equal.lines().find(|l| l.starts_with("| half | 200000 | PSNR (dB) |")).unwrap_or_else(|| panic!("{md}"));
+    assert!(row.ends_with("| 27.50 | 26.50 | +1.00 dB |"), "{row}");
+    let row = equal.lines().find(|l| l.starts_with("| half | 200000 | DISTS |")).unwrap_or_else(|| panic!("{md}"));
+    assert!(row.ends_with("| 0.1000 | 0.1200 | -16.7% |"), "{row}");
+    let row = equal.lines().find(|l| l.starts_with("| half | 50000 | DISTS |")).unwrap_or_else(|| panic!("{md}"));
+    assert!(row.ends_with("| outside its range | - |"), "{row}");
     for metric in ["psnr", "ssim", "dists"] {
         let svg = std::fs::read_to_string(out.join(format!("rd_{metric}.svg"))).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("half"), "rd_{metric}.svg");
