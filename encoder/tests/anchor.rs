@@ -87,7 +87,8 @@ fn grown_anchors_train_and_code() {
         .with_quantization_noise(steps, 20)
         .with_rate(0.002, 60)
         .with_context(lookup)
-        .with_growth(schedule, grid, coords);
+        .with_placement(grid, coords)
+        .with_growth(schedule);
     while trainer.iteration < trainer.iterations {
         trainer.step().unwrap();
     }

@@ -178,13 +178,14 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if job.learned_steps && job.lambda.is_some() {
         trainer = trainer.with_learned_steps();
     }
+    trainer = trainer.with_placement(grid, coords);
     if job.growth {
         let schedule = GrowthSchedule::scaled(job.iterations, job.max_anchors.unwrap_or(2 * initial.len()));
         println!(
             "growing and pruning anchors every {} iterations from {} to {}, up to {}",
             schedule.every, schedule.from, schedule.until, schedule.max_anchors
         );
-        trainer = trainer.with_growth(schedule, grid, coords);
+        trainer = trainer.with_growth(schedule);
     }
     let start = Instant::now();
     let mut last_step_gaussians = 0;
@@ -220,7 +221,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if let Some(bytes) = estimated_attribute_bytes {
         let grid = context_grid_bytes.map(|g| format!(", grid {g:.0} bytes")).unwrap_or_default();
         let model = if job.context { "context" } else { "factorized" };
-        println!("rate model ({model}) estimate: attributes {bytes:.0} bytes{grid}");
+        println!("rate model ({model}) estimate: attributes, anchor positions and masks {bytes:.0} bytes{grid}");
     }
     let steps = trainer.steps().unwrap_or(job.steps);
     if steps != job.steps {

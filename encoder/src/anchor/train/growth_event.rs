@@ -1,8 +1,6 @@
 //! Growing and pruning events of anchor training ([`crate::anchor::growth`]): the statistics'
 //! plan applied to every per-anchor tensor, the masks and the context lookup.
 
-use pwgs_decoder::stream::plain::PositionGrid;
-
 use super::{AnchorTrainer, Growth, GrowthTotals, INITIAL_MASK_LOGIT, MASK_LOGITS};
 use crate::anchor::context::ContextLookup;
 use crate::anchor::growth::{AnchorStats, GrowthPlan, GrowthSchedule, plan};
@@ -10,13 +8,13 @@ use crate::anchor::host::kept_and_added;
 use crate::train::params::tensor_values;
 
 impl AnchorTrainer {
-    /// Grows and prunes anchors on `schedule`; `voxels` are the anchors' coordinates on `grid`,
-    /// in the model's order.
-    pub fn with_growth(mut self, schedule: GrowthSchedule, grid: PositionGrid, voxels: Vec<[u32; 3]>) -> Self {
+    /// Grows and prunes anchors on `schedule`, on the grid of [`Self::with_placement`] (which
+    /// must come first).
+    pub fn with_growth(mut self, schedule: GrowthSchedule) -> Self {
+        assert!(self.placement.is_some(), "growth places anchors on the trainer's grid");
         let [n, _, k] = self.shape;
-        assert_eq!(voxels.len(), n, "one voxel per anchor");
         let stats = AnchorStats::new(n, k);
-        self.growth = Some(Growth { schedule, grid, voxels, stats, totals: GrowthTotals::default() });
+        self.growth = Some(Growth { schedule, stats, totals: GrowthTotals::default() });
         self
     }
 
@@ -28,13 +26,13 @@ impl AnchorTrainer {
     /// A growth event: plans from the statistics, then rebuilds every per-anchor tensor (kept
     /// rows, then the grown anchors' with zero moments), the masks and the context lookup.
     pub(super) fn grow_and_prune(&mut self) {
-        let Some(growth) = &mut self.growth else { return };
+        let (Some(growth), Some(placement)) = (&mut self.growth, &mut self.placement) else { return };
         let [n, f, k] = self.shape;
         let device = self.positions.device();
         let positions = tensor_values(self.positions.clone());
         let scaling = tensor_values(self.params[1].clone());
         let offsets = tensor_values(self.params[2].clone());
-        let grid = growth.grid;
+        let grid = placement.grid;
         // Where the neural Gaussians are, in voxels from the grid's origin (as a step places
         // them: anchor + offset x exp(offset scale)).
         let neural: Vec<[f64; 3]> = (0..n * k)
@@ -47,7 +45,7 @@ impl AnchorTrainer {
             })
             .collect();
         let GrowthPlan { keep, grown } =
-            plan(&growth.stats, &growth.voxels, grid.depth, &neural, &growth.schedule, &mut self.rng);
+            plan(&growth.stats, &placement.voxels, grid.depth, &neural, &growth.schedule, &mut self.rng);
         let features = tensor_values(self.params[0].clone());
         let mut added: [Vec<f32>; 4] = Default::default();
         for g in &grown {
@@ -67,14 +65,14 @@ impl AnchorTrainer {
         self.positions = kept_and_added(&self.positions, &keep, &new_positions);
         let masks: Vec<bool> = keep.iter().flat_map(|&a| self.masks[a * k..(a + 1) * k].iter().copied()).collect();
         self.masks = masks.into_iter().chain(std::iter::repeat_n(true, grown.len() * k)).collect();
-        growth.voxels = keep.iter().map(|&a| growth.voxels[a]).chain(grown.iter().map(|g| g.voxel)).collect();
-        let anchors = growth.voxels.len();
+        placement.voxels = keep.iter().map(|&a| placement.voxels[a]).chain(grown.iter().map(|g| g.voxel)).collect();
+        let anchors = placement.voxels.len();
         growth.totals.grown += grown.len();
         growth.totals.pruned += n - keep.len();
         growth.stats = AnchorStats::new(anchors, k);
         self.shape[0] = anchors;
         if let Some(lookup) = &self.context {
-            self.context = Some(ContextLookup::new(lookup.shape.clone(), &growth.voxels, grid.depth, &device));
+            self.context = Some(ContextLookup::new(lookup.shape.clone(), &placement.voxels, grid.depth, &device));
         }
     }
 }

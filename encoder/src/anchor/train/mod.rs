@@ -126,18 +126,23 @@ pub struct AnchorTrainer {
     wrapper: Option<WrapperStage>,
     /// With a stage 2: λ's factor there, from the running means of both stages' distortions.
     distortion_scale: Option<DistortionScale>,
+    placement: Option<Placement>,
     growth: Option<Growth>,
     frame: SceneFrame,
     pub iteration: u32,
     pub iterations: u32,
 }
 
-/// Growing and pruning: when, the grid the anchors sit on, their voxels (in the trainer's
-/// order), what the steps since the last event saw, and the totals so far.
-struct Growth {
-    schedule: GrowthSchedule,
+/// The grid the anchors sit on and their voxels on it, in the trainer's order: growth places
+/// new anchors on it, and the rate term codes the open anchors' voxels as the stream does.
+struct Placement {
     grid: PositionGrid,
     voxels: Vec<[u32; 3]>,
+}
+
+/// Growing and pruning: when, what the steps since the last event saw, and the totals so far.
+struct Growth {
+    schedule: GrowthSchedule,
     stats: AnchorStats,
     totals: GrowthTotals,
 }
@@ -247,6 +252,7 @@ impl AnchorTrainer {
             wrapper_settings: None,
             wrapper: None,
             distortion_scale: None,
+            placement: None,
             growth: None,
             frame: data.normalization.frame(),
             iteration: 0,
@@ -264,6 +270,15 @@ impl AnchorTrainer {
     /// quantization noise: the rate is that of the noisy values).
     pub fn with_rate(mut self, lambda: f32, from: u32) -> Self {
         self.rate_term = Some((lambda, from));
+        self
+    }
+
+    /// Places the anchors on `grid` at `voxels` (one per anchor, in the model's order), as the
+    /// stream will: growth needs it, and with it the rate term also counts what each open
+    /// anchor costs besides its values (its position and masks, [`rate_term::side_bits`]).
+    pub fn with_placement(mut self, grid: PositionGrid, voxels: Vec<[u32; 3]>) -> Self {
+        assert_eq!(voxels.len(), self.shape[0], "one voxel per anchor");
+        self.placement = Some(Placement { grid, voxels });
         self
     }
 
@@ -474,7 +489,7 @@ impl AnchorTrainer {
         let mut bits_per_value = None;
         if let Some(lambda) = lambda {
             let steps = steps.expect("the rate needs the quantization steps");
-            let bpp = self.mean_bits(&attributes, &tracked, &steps, mask_gate, &masks);
+            let bpp = self.mean_bits(&attributes, &tracked, &steps, mask_gate, &masks)?;
             bits_per_value = Some(tensor_values(bpp.clone().inner())[0]);
             loss = loss + bpp * (lambda * self.lambda_factor());
         }

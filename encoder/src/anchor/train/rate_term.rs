@@ -9,6 +9,28 @@ use crate::anchor::quantize::AnchorSteps;
 use crate::anchor::rate::factorized_bits;
 use crate::train::params::tensor_values;
 use pwgs_decoder::stream::anchor_context::predicted_values;
+use pwgs_decoder::stream::octree::{self, OctreeError};
+
+/// Bits the stream spends on an open anchor besides its values, on average: its position (the
+/// open anchors' voxels coded as `APOS` codes them) and its K masks (each offset's mask at its
+/// channel's frequency among the open anchors, as `AMSK`'s static tables code them). An anchor
+/// with every mask shut leaves the stream and costs none of it.
+pub(super) fn side_bits(voxels: &[[u32; 3]], depth: u8, masks: &[bool], k: usize) -> Result<f32, OctreeError> {
+    let open: Vec<usize> = (0..voxels.len()).filter(|&a| masks[a * k..(a + 1) * k].iter().any(|&m| m)).collect();
+    if open.is_empty() {
+        return Ok(0.0);
+    }
+    let points: Vec<[u32; 3]> = open.iter().map(|&a| voxels[a]).collect();
+    let position_bits = 8 * octree::encode(&points, depth)?.0.len();
+    let mask_bits: f64 = (0..k)
+        .map(|j| {
+            let p = open.iter().filter(|&&a| masks[a * k + j]).count() as f64 / open.len() as f64;
+            let h = |q: f64| if q > 0.0 { -q * q.log2() } else { 0.0 };
+            h(p) + h(1.0 - p)
+        })
+        .sum();
+    Ok((position_bits as f64 / open.len() as f64 + mask_bits) as f32)
+}
 
 impl AnchorTrainer {
     /// Learns a factor on each group's quantization step (features, scaling, offsets) while the
@@ -59,13 +81,13 @@ impl AnchorTrainer {
         })
     }
 
-    /// Mean bits per stored value: features and scaling of every anchor with an open mask,
-    /// offsets of every open mask, over all N x (F + 6 + 3K) values. Both are gated so that
-    /// their bits reach the masks: an offset's through its own mask, an anchor's features and
-    /// scaling through the mean of its masks (HAC++'s adaptive anchor mask), so that the rate
-    /// can shut an anchor whose Gaussians are not worth the anchor's own values. With the
-    /// anchor's bits held constant, as before, the last open mask of an anchor cost only its
-    /// three offsets.
+    /// Mean bits per stored value: features and scaling of every anchor with an open mask, and
+    /// with a placement its position and masks ([`side_bits`]), offsets of every open mask,
+    /// over all N x (F + 6 + 3K) values. Both are gated so that their bits reach the masks: an
+    /// offset's through its own mask, an anchor's own bits through the mean of its masks
+    /// (HAC++'s adaptive anchor mask), so that the rate can shut an anchor whose Gaussians are
+    /// not worth what the anchor itself costs. With the anchor's bits held constant, as
+    /// before, the last open mask of an anchor cost only its three offsets.
     pub(super) fn mean_bits(
         &self,
         attributes: &[Tensor<2>],
@@ -73,7 +95,7 @@ impl AnchorTrainer {
         steps: &[Tensor<2>; 3],
         gate: Tensor<2>,
         masks: &[bool],
-    ) -> Tensor<1> {
+    ) -> Result<Tensor<1>, OctreeError> {
         let [n, f, k] = self.shape;
         let widths = [f, 6, 3 * k];
         let values = predicted_values(f, k);
@@ -105,8 +127,12 @@ impl AnchorTrainer {
             None => factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps[2].clone()),
         };
         let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
-        let total = ((features + scaling) * anchor_gate + offsets).sum();
-        total / self.rated_values() as f32
+        let side = match &self.placement {
+            Some(p) => side_bits(&p.voxels, p.grid.depth, masks, k)?,
+            None => 0.0,
+        };
+        let total = ((features + scaling).add_scalar(side) * anchor_gate + offsets).sum();
+        Ok(total / self.rated_values() as f32)
     }
 }
 
@@ -118,6 +144,7 @@ mod tests {
     use super::super::{MASK_LOGITS, mask_gate};
     use super::*;
     use crate::anchor::init::{AnchorShape, initial_model};
+    use crate::anchor::quantize::grid_coordinates;
 
     /// Of two anchors alike but for their features, the masks of the one whose features cost
     /// more bits are pushed harder towards shutting: an anchor's own bits reach its masks.
@@ -143,11 +170,64 @@ mod tests {
         let steps = trainer.step_tensors(&tracked).unwrap();
         let masks = trainer.open_masks();
         let gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
-        let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks);
+        let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks).unwrap();
         let grads = bits.backward();
         let g = tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap());
         let (cheap, costly) = (g[0] + g[1], g[2] + g[3]);
         assert!(cheap > 0.0, "shutting a mask saves bits: {:?}", &g[..4]);
         assert!(costly > 2.0 * cheap, "the costly features' bits do not reach the masks: {:?}", &g[..4]);
+    }
+
+    /// Placed on its grid, an open anchor also costs its position and masks: the mean bits
+    /// grow by exactly that cost over the rated values, and the masks are pushed harder.
+    #[test]
+    fn a_placed_anchors_position_and_masks_reach_its_masks() {
+        let tmp = tempfile::tempdir().unwrap();
+        let options = SyntheticOptions { width: 32, height: 24, views: 2, seed: 6, points: 300 };
+        generate(tmp.path(), &options).unwrap();
+        let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
+        let k = 3;
+        let shape = AnchorShape { feature_dim: 4, offsets_per_anchor: k, voxel: 0.05 * data.normalization.scale };
+        let (model, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+        let voxels = grid_coordinates(&model.positions, &grid).unwrap();
+        let rate = |placed: bool| {
+            let trainer = AnchorTrainer::new(&model, &data, 10, [0.0; 3], 0)
+                .unwrap()
+                .with_quantization_noise(AnchorSteps::default(), 0)
+                .with_rate(1.0, 0);
+            let trainer = if placed { trainer.with_placement(grid, voxels.clone()) } else { trainer };
+            let tracked: Vec<Tensor<2>> = trainer.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
+            let steps = trainer.step_tensors(&tracked).unwrap();
+            let masks = trainer.open_masks();
+            let gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
+            let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks).unwrap();
+            let value = tensor_values(bits.clone().inner())[0];
+            let grads = bits.backward();
+            let g: f32 = tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap()).iter().sum();
+            (value, g, trainer.rated_values())
+        };
+        let (plain, plain_grad, rated) = rate(false);
+        let (placed, placed_grad, _) = rate(true);
+        // Every mask is open at the start: each anchor costs its octree share, masks nothing.
+        let side = side_bits(&voxels, grid.depth, &vec![true; voxels.len() * k], k).unwrap();
+        assert!(side > 1.0, "an anchor's position costs bits: {side}");
+        let expected = plain + side * model.len() as f32 / rated as f32;
+        assert!((placed - expected).abs() < 1e-4 * expected, "{placed} against {expected}");
+        assert!(placed_grad > 1.1 * plain_grad && plain_grad > 0.0, "{placed_grad} against {plain_grad}");
+    }
+
+    #[test]
+    fn side_bits_count_the_open_anchors_positions_and_masks() {
+        let voxels = [[0, 0, 0], [5, 1, 7], [2, 2, 2], [7, 7, 0]];
+        // Two masks per anchor; anchor 2 is shut and leaves the stream.
+        let masks = [true, false, true, true, false, false, true, false];
+        let bits = side_bits(&voxels, 3, &masks, 2).unwrap();
+        let open = [voxels[0], voxels[1], voxels[3]];
+        let position = 8.0 * octree::encode(&open, 3).unwrap().0.len() as f64 / 3.0;
+        // Mask 0 is open in every open anchor (no information), mask 1 in one of three.
+        let third = 1.0f64 / 3.0;
+        let mask = -(third * third.log2() + (1.0 - third) * (1.0 - third).log2());
+        assert!((f64::from(bits) - (position + mask)).abs() < 1e-5, "{bits} against {}", position + mask);
+        assert_eq!(side_bits(&voxels, 3, &[false; 8], 2).unwrap(), 0.0, "no open anchor, no stream");
     }
 }
