@@ -160,20 +160,17 @@ pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path
         reference.name,
         deltas_table(curves, reference)
     );
-    let _ = writeln!(
-        md,
-        "## Size at equal score\n\nEach run of the other curves against `{}` interpolated at the run's score \
-         (as BD-rate interpolates; a curve of 2 runs or more).\n\n{}",
-        reference.name,
-        equal_score_table(curves, reference)
-    );
-    let _ = writeln!(
-        md,
-        "## Scores at equal size\n\nEach run of the other curves against `{}` interpolated at the run's size \
-         (as BD-PSNR interpolates; a curve of 2 runs or more).\n\n{}",
-        reference.name,
-        equal_size_table(curves, reference)
-    );
+    for (heading, at, like, table) in [
+        ("Size at equal score", "score", "BD-rate", equal_score_table(curves, reference)),
+        ("Scores at equal size", "size", "BD-PSNR", equal_size_table(curves, reference)),
+    ] {
+        let _ = writeln!(
+            md,
+            "## {heading}\n\nEach run of the other curves against `{}` interpolated at the run's {at} \
+             (as {like} interpolates; a curve of 2 runs or more).\n\n{table}",
+            reference.name
+        );
+    }
     md.push_str("## Rate-distortion charts\n\n");
     for m in Metric::ALL {
         let file = format!("rd_{}.svg", m.key());

@@ -139,40 +139,58 @@ impl AnchorTrainer {
 #[cfg(test)]
 mod tests {
     use pwgs_dataset::synthetic::{SyntheticOptions, generate};
-    use pwgs_dataset::{LoadOptions, load_scene};
+    use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+    use pwgs_decoder::anchor::AnchorModel;
+    use pwgs_decoder::stream::plain::PositionGrid;
 
     use super::super::{MASK_LOGITS, mask_gate};
     use super::*;
     use crate::anchor::init::{AnchorShape, initial_model};
     use crate::anchor::quantize::grid_coordinates;
 
-    /// Of two anchors alike but for their features, the masks of the one whose features cost
-    /// more bits are pushed harder towards shutting: an anchor's own bits reach its masks.
-    #[test]
-    fn an_anchors_own_bits_reach_its_masks() {
+    /// A small generated scene and its initial anchors with features of `f` and `k` offsets.
+    fn small_model(seed: u64, f: usize, k: usize) -> (Dataset, AnchorModel, PositionGrid) {
         let tmp = tempfile::tempdir().unwrap();
-        let options = SyntheticOptions { width: 32, height: 24, views: 2, seed: 5, points: 300 };
+        let options = SyntheticOptions { width: 32, height: 24, views: 2, seed, points: 300 };
         generate(tmp.path(), &options).unwrap();
         let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
-        let (f, k) = (4, 2);
         let shape = AnchorShape { feature_dim: f, offsets_per_anchor: k, voxel: 0.05 * data.normalization.scale };
-        let (mut model, _) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
-        assert!(model.len() >= 2);
-        model.scaling[1] = model.scaling[0];
-        model.offsets.copy_within(0..3 * k, 3 * k);
-        model.features[..f].fill(0.0);
-        model.features[f..2 * f].fill(30.0);
-        let trainer = AnchorTrainer::new(&model, &data, 10, [0.0; 3], 0)
+        let (model, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+        (data, model, grid)
+    }
+
+    /// A trainer of `model` with the rate term on from the start.
+    fn rated_trainer(model: &AnchorModel, data: &Dataset) -> AnchorTrainer {
+        AnchorTrainer::new(model, data, 10, [0.0; 3], 0)
             .unwrap()
             .with_quantization_noise(AnchorSteps::default(), 0)
-            .with_rate(1.0, 0);
+            .with_rate(1.0, 0)
+    }
+
+    /// The mean bits of `trainer`'s model and their gradient on each mask logit.
+    fn bits_and_mask_gradients(trainer: &AnchorTrainer) -> (f32, Vec<f32>) {
         let tracked: Vec<Tensor<2>> = trainer.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
         let steps = trainer.step_tensors(&tracked).unwrap();
         let masks = trainer.open_masks();
         let gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
         let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks).unwrap();
+        let value = tensor_values(bits.clone().inner())[0];
         let grads = bits.backward();
-        let g = tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap());
+        (value, tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap()))
+    }
+
+    /// Of two anchors alike but for their features, the masks of the one whose features cost
+    /// more bits are pushed harder towards shutting: an anchor's own bits reach its masks.
+    #[test]
+    fn an_anchors_own_bits_reach_its_masks() {
+        let (f, k) = (4, 2);
+        let (data, mut model, _) = small_model(5, f, k);
+        assert!(model.len() >= 2);
+        model.scaling[1] = model.scaling[0];
+        model.offsets.copy_within(0..3 * k, 3 * k);
+        model.features[..f].fill(0.0);
+        model.features[f..2 * f].fill(30.0);
+        let (_, g) = bits_and_mask_gradients(&rated_trainer(&model, &data));
         let (cheap, costly) = (g[0] + g[1], g[2] + g[3]);
         assert!(cheap > 0.0, "shutting a mask saves bits: {:?}", &g[..4]);
         assert!(costly > 2.0 * cheap, "the costly features' bits do not reach the masks: {:?}", &g[..4]);
@@ -182,37 +200,20 @@ mod tests {
     /// grow by exactly that cost over the rated values, and the masks are pushed harder.
     #[test]
     fn a_placed_anchors_position_and_masks_reach_its_masks() {
-        let tmp = tempfile::tempdir().unwrap();
-        let options = SyntheticOptions { width: 32, height: 24, views: 2, seed: 6, points: 300 };
-        generate(tmp.path(), &options).unwrap();
-        let data = load_scene(tmp.path(), &LoadOptions::default()).unwrap();
         let k = 3;
-        let shape = AnchorShape { feature_dim: 4, offsets_per_anchor: k, voxel: 0.05 * data.normalization.scale };
-        let (model, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
+        let (data, model, grid) = small_model(6, 4, k);
         let voxels = grid_coordinates(&model.positions, &grid).unwrap();
-        let rate = |placed: bool| {
-            let trainer = AnchorTrainer::new(&model, &data, 10, [0.0; 3], 0)
-                .unwrap()
-                .with_quantization_noise(AnchorSteps::default(), 0)
-                .with_rate(1.0, 0);
-            let trainer = if placed { trainer.with_placement(grid, voxels.clone()) } else { trainer };
-            let tracked: Vec<Tensor<2>> = trainer.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
-            let steps = trainer.step_tensors(&tracked).unwrap();
-            let masks = trainer.open_masks();
-            let gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
-            let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks).unwrap();
-            let value = tensor_values(bits.clone().inner())[0];
-            let grads = bits.backward();
-            let g: f32 = tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap()).iter().sum();
-            (value, g, trainer.rated_values())
-        };
-        let (plain, plain_grad, rated) = rate(false);
-        let (placed, placed_grad, _) = rate(true);
+        let unplaced = rated_trainer(&model, &data);
+        let rated = unplaced.rated_values();
+        let (plain, plain_grad) = bits_and_mask_gradients(&unplaced);
+        let (placed, placed_grad) =
+            bits_and_mask_gradients(&rated_trainer(&model, &data).with_placement(grid, voxels.clone()));
         // Every mask is open at the start: each anchor costs its octree share, masks nothing.
         let side = side_bits(&voxels, grid.depth, &vec![true; voxels.len() * k], k).unwrap();
         assert!(side > 1.0, "an anchor's position costs bits: {side}");
         let expected = plain + side * model.len() as f32 / rated as f32;
         assert!((placed - expected).abs() < 1e-4 * expected, "{placed} against {expected}");
+        let (plain_grad, placed_grad): (f32, f32) = (plain_grad.iter().sum(), placed_grad.iter().sum());
         assert!(placed_grad > 1.1 * plain_grad && plain_grad > 0.0, "{placed_grad} against {plain_grad}");
     }
 
