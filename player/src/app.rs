@@ -13,6 +13,7 @@ use pwgs_decoder::gpu::{GpuRenderer, StageTimes};
 use pwgs_decoder::rgb_image::RgbImage;
 
 use crate::dataset_views::DatasetViews;
+use crate::file_dialog::{Choice, FileDialog};
 use crate::headless::describe_times;
 use crate::loaded::LoadedStream;
 use crate::orbit::Orbit;
@@ -89,6 +90,7 @@ struct Player {
     continuous: bool,
     message: String,
     path_field: String,
+    file_dialog: FileDialog,
     screenshot_path: String,
     window_screenshot: Option<PathBuf>,
 }
@@ -119,6 +121,7 @@ impl Player {
             continuous: false,
             message: String::new(),
             path_field: options.stream.as_ref().map(|p| p.display().to_string()).unwrap_or_default(),
+            file_dialog: FileDialog::default(),
             screenshot_path: "pwplay-screenshot.png".into(),
             window_screenshot: options.window_screenshot,
         };
@@ -174,7 +177,22 @@ impl Player {
             if ui.button("Open").clicked() && !self.path_field.is_empty() {
                 self.open(PathBuf::from(self.path_field.clone()), ui.ctx());
             }
+            if ui.add_enabled(!self.file_dialog.is_open(), egui::Button::new("Browse…")).clicked() {
+                self.file_dialog.open(Path::new(&self.path_field), ui.ctx());
+            }
         });
+        match self.file_dialog.poll() {
+            Some(Choice::Chosen(path)) => {
+                self.path_field = path.display().to_string();
+                self.open(path, ui.ctx());
+            }
+            Some(Choice::None) => {
+                self.message = "no file chosen (the file dialog needs the XDG desktop portal or zenity; \
+                                the path field and dropping a file always work)"
+                    .into()
+            }
+            None => {}
+        }
         ui.label("or drop a .pwb file on the window");
         if self.loading.is_some() {
             ui.horizontal(|ui| {
@@ -321,7 +339,7 @@ impl Player {
     fn central(&mut self, ui: &mut egui::Ui) {
         let Some(stream) = &self.stream else {
             ui.centered_and_justified(|ui| {
-                ui.label("open a stream: pwplay SCENE.pwb, the Open button, or drop a file")
+                ui.label("open a stream: pwplay SCENE.pwb, the path field, Browse…, or drop a file")
             });
             return;
         };

@@ -5,6 +5,7 @@
 
 pub mod app;
 pub mod dataset_views;
+pub mod file_dialog;
 pub mod headless;
 pub mod loaded;
 pub mod orbit;
