@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_encoder::metrics::sigma_map::{Log2Sigma, SigmaMap};
-use pwgs_encoder::metrics::vgg_wasserstein::VggWasserstein;
+use pwgs_encoder::metrics::vgg_wasserstein::{VggWasserstein, WdDepth};
 
 fn load(device: &Device) -> Option<VggWasserstein> {
     shared_weights::loaded(VggWasserstein::load(&shared_weights::search_dirs(), device))
@@ -61,6 +61,30 @@ fn a_constant_sigma_map_equals_the_constant() {
     let ramp = SigmaMap { height: 64, width: 72, values: (0..64 * 72).map(|i| 5.0 * (i % 72) as f64 / 71.0).collect() };
     let varying = scalar(wd.distortion(a, &target, &Log2Sigma::Map(ramp)));
     assert!((varying - constant).abs() > 1e-3 * constant, "{varying} vs {constant}");
+}
+
+/// A shallower pyramid compares exactly the reference's arrays it keeps (the normalized
+/// image, then the first blocks at the first scales), and so scores at most what it does.
+#[test]
+fn a_shallower_pyramid_keeps_the_reference_arrays() {
+    let device = Device::flex();
+    let Some(full) = load(&device) else { return };
+    let Some(shallow) = load(&device) else { return };
+    let shallow = shallow.with_depth(WdDepth { blocks: 2, scales: 2 });
+    let a = pattern([1, 3, 64, 64], 37, 0, &device);
+    let all = full.features(a.clone());
+    let kept = shallow.features(a.clone());
+    assert_eq!(all.len(), 16);
+    // Arrays 0 (the image), 1-2 (scale 0, blocks 1-2) and 6-7 (scale 1, blocks 1-2).
+    assert_eq!(kept.len(), 5);
+    for (k, i) in [0, 1, 2, 6, 7].into_iter().enumerate() {
+        assert_eq!(kept[k].to_data(), all[i].to_data(), "array {k} of the shallow pyramid is not the reference's {i}");
+    }
+    let b = pattern([1, 3, 64, 64], 73, 19, &device);
+    let sigma = Log2Sigma::Constant(2.0);
+    let (whole, part) =
+        (scalar(full.distortion_pair(a.clone(), b.clone(), &sigma)), scalar(shallow.distortion_pair(a, b, &sigma)));
+    assert!(part > 0.0 && part < whole, "{part} against {whole}");
 }
 
 #[test]

@@ -109,6 +109,7 @@ fn stage_two_settings(pixel_weight: f32, base_lr_scale: f32) -> pwgs_encoder::tr
         learning_rate: 0.01,
         base_lr_scale,
         features: WdFeatures::Pixels,
+        wd_depth: Default::default(),
         pixel_weight,
         crops_per_view: 1,
         min_steps: 0,

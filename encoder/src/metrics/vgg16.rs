@@ -16,7 +16,11 @@ use super::sigma_map::BINOMIAL;
 use super::weights::{HostTensor, VGG16_CONVS, WeightFile, WeightsError, load};
 
 /// Conv layers per block; each block but the first starts with a pooling.
+/// Convolutions per block.
 const BLOCKS: [usize; 5] = [2, 2, 3, 3, 3];
+
+/// VGG16's blocks, each ending in one of the feature arrays relu1_2 .. relu5_3.
+pub const VGG_BLOCKS: usize = BLOCKS.len();
 
 /// ImageNet channel statistics of torchvision's preprocessing.
 pub const IMAGENET_MEAN: [f64; 3] = [0.485, 0.456, 0.406];
@@ -72,10 +76,16 @@ impl Vgg16 {
     /// relu1_2, relu2_2, relu3_3, relu4_3, relu5_3 of `x` [N, 3, H, W], which must already be
     /// scaled as the metric requires (see [`imagenet_normalize`]). Differentiable in `x`.
     pub fn features(&self, x: Tensor<4>, pooling: Pooling) -> Vec<Tensor<4>> {
+        self.first_features(x, pooling, BLOCKS.len())
+    }
+
+    /// The first `blocks` (1 to 5) of [`Self::features`], without running the deeper layers.
+    pub fn first_features(&self, x: Tensor<4>, pooling: Pooling, blocks: usize) -> Vec<Tensor<4>> {
+        assert!((1..=BLOCKS.len()).contains(&blocks), "VGG16 has blocks 1 to {}, not {blocks}", BLOCKS.len());
         let mut convs = self.convs.iter();
         let mut h = x;
-        let mut out = Vec::with_capacity(BLOCKS.len());
-        for (block, &count) in BLOCKS.iter().enumerate() {
+        let mut out = Vec::with_capacity(blocks);
+        for (block, &count) in BLOCKS.iter().enumerate().take(blocks) {
             if block > 0 {
                 h = pool(h, pooling);
             }

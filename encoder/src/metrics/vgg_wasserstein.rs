@@ -15,7 +15,7 @@ use std::path::PathBuf;
 use burn::tensor::{Device, Tensor};
 
 use super::sigma_map::Log2Sigma;
-use super::vgg16::{Pooling, Vgg16, imagenet_normalize};
+use super::vgg16::{Pooling, VGG_BLOCKS, Vgg16, imagenet_normalize};
 use super::wasserstein::{lowpass, multi_wasserstein_distortion};
 use super::weights::WeightsError;
 
@@ -39,42 +39,69 @@ impl WdTarget {
     }
 }
 
+/// How much of the feature pyramid WD compares: the reference's is every VGG16 block at every
+/// image scale; fewer cost less (training's speed-against-error table, issue 18).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct WdDepth {
+    /// VGG16 blocks, 1 to 5: relu1_2 .. relu(blocks)_x.
+    pub blocks: usize,
+    /// Image scales, 1 to [`IMAGE_SCALES`].
+    pub scales: usize,
+}
+
+impl Default for WdDepth {
+    fn default() -> Self {
+        Self { blocks: VGG_BLOCKS, scales: IMAGE_SCALES }
+    }
+}
+
 /// WD with VGG16 features on one device.
 pub struct VggWasserstein {
-    /// `None`: the cheap variant that compares the normalized image's 3 scales only.
+    /// `None`: the cheap variant that compares the normalized image's scales only.
     vgg: Option<Vgg16>,
+    depth: WdDepth,
 }
 
 impl VggWasserstein {
     /// Loads the VGG16 weights from the first of `dirs` holding them.
     pub fn load(dirs: &[PathBuf], device: &Device) -> Result<Self, WeightsError> {
-        Ok(Self { vgg: Some(Vgg16::load(dirs, device)?) })
+        Ok(Self { vgg: Some(Vgg16::load(dirs, device)?), depth: WdDepth::default() })
     }
 
     /// WD on pixels alone: the normalized image at the 3 scales, no VGG features. Much cheaper
     /// and needs no weights, but blind to texture beyond local color statistics.
     pub fn pixels_only() -> Self {
-        Self { vgg: None }
+        Self { vgg: None, depth: WdDepth::default() }
     }
 
-    /// The 16 feature arrays of `x` [N, 3, H, W] in [0, 1]: the normalized image, then
-    /// relu1_2 .. relu5_3 at each of the 3 scales (pixels only: the normalized image at each
-    /// scale). Differentiable in `x`. Panics if a side is below [`MIN_SIDE`].
+    /// The same WD on part of the pyramid (the defaults are the reference's). Panics outside
+    /// 1..=5 blocks or 1..=3 scales.
+    pub fn with_depth(self, depth: WdDepth) -> Self {
+        assert!((1..=VGG_BLOCKS).contains(&depth.blocks), "WD compares 1 to {VGG_BLOCKS} VGG blocks");
+        assert!((1..=IMAGE_SCALES).contains(&depth.scales), "WD compares 1 to {IMAGE_SCALES} image scales");
+        Self { depth, ..self }
+    }
+
+    /// The feature arrays of `x` [N, 3, H, W] in [0, 1]: the normalized image, then relu1_2 ..
+    /// relu5_3 at each of the 3 scales, 16 arrays (pixels only: the normalized image at each
+    /// scale; a shallower [`WdDepth`]: its blocks at its scales). Differentiable in `x`.
+    /// Panics if a side is below [`MIN_SIDE`].
     pub fn features(&self, x: Tensor<4>) -> Vec<Tensor<4>> {
         let [_, _, height, width] = x.dims();
         assert!(
             height >= MIN_SIDE && width >= MIN_SIDE,
             "VGG WD needs at least {MIN_SIDE}x{MIN_SIDE}, got {width}x{height}"
         );
+        let WdDepth { blocks, scales } = self.depth;
         let mut scale = imagenet_normalize(x);
         let mut features = vec![scale.clone()];
-        for s in 0..IMAGE_SCALES {
+        for s in 0..scales {
             match &self.vgg {
-                Some(vgg) => features.extend(vgg.features(scale.clone(), Pooling::Average)),
+                Some(vgg) => features.extend(vgg.first_features(scale.clone(), Pooling::Average, blocks)),
                 None if s > 0 => features.push(scale.clone()),
                 None => {}
             }
-            if s + 1 < IMAGE_SCALES {
+            if s + 1 < scales {
                 scale = lowpass(scale, 2);
             }
         }

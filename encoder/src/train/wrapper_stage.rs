@@ -24,7 +24,7 @@ use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 
 use super::adam::direction;
 use crate::metrics::sigma_map::{Log2Sigma, SigmaMap};
-use crate::metrics::vgg_wasserstein::{MIN_SIDE, VggWasserstein, WdTarget};
+use crate::metrics::vgg_wasserstein::{MIN_SIDE, VggWasserstein, WdDepth, WdTarget};
 use crate::synthesis::{flat_tensor, forward, host_weights, initial_parameters};
 
 /// Stage 2's default length per training view. On fox (58 training views) 34 crops per view
@@ -66,6 +66,8 @@ pub struct WrapperTraining {
     /// base, so that only f learns).
     pub base_lr_scale: f32,
     pub features: WdFeatures,
+    /// How much of the feature pyramid WD compares (the default is the reference's).
+    pub wd_depth: WdDepth,
     /// Weight of the base's own objective (L1 + SSIM) on the crop of the base render I_base,
     /// added to WD: it keeps the Gaussians faithful to the pixels while f synthesizes texture
     /// (0: WD alone).
@@ -155,14 +157,15 @@ impl WrapperTraining {
             bail!("the log2 sigma map is {}x{}, the training views {width}x{height}", map.width, map.height);
         }
         self.log2_sigma.validate().map_err(anyhow::Error::msg)?;
-        Ok(match &self.features {
+        let wd = match &self.features {
             WdFeatures::Vgg(dirs) => VggWasserstein::load(dirs, device)
                 .context(
                 "the perceptual wrapper's WD needs the VGG16 weights: run `pwenc fetch-weights` (or pass --weights DIR), \
                  or train the base alone with --no-wrapper",
             )?,
             WdFeatures::Pixels => VggWasserstein::pixels_only(),
-        })
+        };
+        Ok(wd.with_depth(self.wd_depth))
     }
 }
 
@@ -330,6 +333,7 @@ mod tests {
             learning_rate: 0.01,
             base_lr_scale: 1.0,
             features: WdFeatures::Pixels,
+            wd_depth: WdDepth::default(),
             pixel_weight: 0.0,
             cache_bytes: 0,
         }

@@ -8,7 +8,8 @@ use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::wrap::MAX_WIDTH;
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
-use pwgs_encoder::metrics::vgg_wasserstein::MIN_SIDE;
+use pwgs_encoder::metrics::vgg_wasserstein::{IMAGE_SCALES, MIN_SIDE, WdDepth};
+use pwgs_encoder::metrics::vgg16::VGG_BLOCKS;
 use pwgs_encoder::train::wrapper_stage::{DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS};
 use pwgs_encoder::train::{WdFeatures, WrapperTraining};
 
@@ -78,6 +79,15 @@ pub(crate) struct WrapperArgs {
     /// Features WD compares: VGG16 (the reference) or the image alone (cheap, no weights).
     #[arg(long, value_enum, default_value = "vgg", conflicts_with = "no_wrapper")]
     wd_features: FeatureKind,
+    /// VGG16 blocks WD compares, 1 to 5 (relu1_2 .. relu5_3; fewer skip the deeper layers: a
+    /// cheaper step, for the speed-against-error table).
+    #[arg(long, default_value_t = VGG_BLOCKS as u8, conflicts_with = "no_wrapper",
+          value_parser = clap::value_parser!(u8).range(1..=VGG_BLOCKS as i64))]
+    wd_vgg_blocks: u8,
+    /// Image scales WD compares, 1 to 3 (each half the previous; fewer are cheaper).
+    #[arg(long, default_value_t = IMAGE_SCALES as u8, conflicts_with = "no_wrapper",
+          value_parser = clap::value_parser!(u8).range(1..=IMAGE_SCALES as i64))]
+    wd_scales: u8,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -131,6 +141,7 @@ impl WrapperArgs {
             learning_rate: self.wrapper_lr,
             base_lr_scale: self.wrapper_base_lr_scale.unwrap_or(base_lr_scale),
             features,
+            wd_depth: WdDepth { blocks: usize::from(self.wd_vgg_blocks), scales: usize::from(self.wd_scales) },
             pixel_weight: self.wd_pixel_weight,
         }))
     }
