@@ -27,9 +27,9 @@ fn main() {
     let counts: &[usize] = if quick { &[10_000, 100_000] } else { &[10_000, 100_000, 1_000_000] };
     println!("adapter: {}; {width}x{height}; median of {FRAMES} frames", gpu.adapter_name());
     println!(
-        "| Gaussians | wrapper | Gaussians+projection ms | sort+binning ms | raster ms | synthesis ms | readback ms | frame ms | frames/s | CPU ms | CPU/GPU | max abs diff |"
+        "| Gaussians | upload ms | wrapper | projection ms | readback+sort+binning ms | raster ms | synthesis ms | readback ms | frame ms | frames/s | CPU ms | CPU/GPU | max abs diff |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let camera =
         axis_camera(width, height, 0.9 * width as f32, 0.9 * width as f32, 0.5 * width as f32, 0.5 * height as f32);
     for &n in counts {
@@ -39,13 +39,16 @@ fn main() {
         let gaussians = random_gaussians(&mut rng, n, 3, [-4.5 - shrink, -2.5 - shrink]);
         let scene = wrapped_random_scene(&mut rng, gaussians, [0.1, 0.1, 0.1]);
         let options = scene.render_options();
+        let start = Instant::now();
+        let prepared = gpu.prepare(&scene).expect("uploads");
+        let upload_ms = start.elapsed().as_secs_f64() * 1e3;
         for output in [Output::Base, Output::Shown] {
             let wrapped = output == Output::Shown;
-            let _ = gpu.render(&scene, &camera, &options, output).expect("renders");
+            let _ = gpu.render(&scene, &prepared, &camera, &options, output).expect("renders");
             let mut times: Vec<StageTimes> = Vec::with_capacity(FRAMES);
             let mut last = None;
             for _ in 0..FRAMES {
-                let (shown, t) = gpu.render(&scene, &camera, &options, output).expect("renders");
+                let (shown, t) = gpu.render(&scene, &prepared, &camera, &options, output).expect("renders");
                 times.push(t);
                 last = Some(shown);
             }
@@ -61,7 +64,7 @@ fn main() {
             let max = cpu.image.data.iter().zip(&gpu_image.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
             let frame = median(StageTimes::total);
             println!(
-                "| {n} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {frame:.1} | {:.2} | {cpu_ms:.0} | {:.2} | {max:.1e} |",
+                "| {n} | {upload_ms:.0} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {frame:.1} | {:.2} | {cpu_ms:.0} | {:.2} | {max:.1e} |",
                 if wrapped { "on" } else { "off" },
                 median(|t| t.gaussians + t.projection),
                 median(|t| t.sort),

@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::Result;
 use eframe::egui;
 use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gpu::{GpuRenderer, StageTimes};
+use pwgs_decoder::gpu::{GpuRenderer, GpuScene, StageTimes};
 use pwgs_decoder::rgb_image::RgbImage;
 
 use crate::dataset_views::DatasetViews;
@@ -69,7 +69,8 @@ struct RenderKey {
 
 struct Player {
     gpu: GpuRenderer,
-    stream: Option<LoadedStream>,
+    /// The open stream, and its scene made ready for the GPU.
+    stream: Option<(LoadedStream, GpuScene)>,
     /// A stream being decoded on another thread.
     loading: Option<(PathBuf, Receiver<Result<LoadedStream>>)>,
     /// Bumped for every stream opened, so that its first picture is rendered.
@@ -149,15 +150,18 @@ impl Player {
         let Some((path, receiver)) = &self.loading else { return };
         let Ok(result) = receiver.try_recv() else { return };
         match result {
-            Ok(stream) => {
-                self.orbit = match (&self.dataset, self.view) {
-                    (Some(d), Some(i)) => d.orbit(i),
-                    _ => Orbit::for_scene(&stream.scene, self.orbit.up),
-                };
-                self.message = format!("opened {}", path.display());
-                self.stream = Some(stream);
-                self.generation += 1;
-            }
+            Ok(stream) => match self.gpu.prepare(&stream.scene) {
+                Ok(prepared) => {
+                    self.orbit = match (&self.dataset, self.view) {
+                        (Some(d), Some(i)) => d.orbit(i),
+                        _ => Orbit::for_scene(&stream.scene, self.orbit.up),
+                    };
+                    self.message = format!("opened {}", path.display());
+                    self.stream = Some((stream, prepared));
+                    self.generation += 1;
+                }
+                Err(e) => self.message = format!("error: {}: {e}", path.display()),
+            },
             Err(e) => {
                 self.message = format!("error: {e:#}");
                 // A scripted window check must not wait forever for a picture that will
@@ -203,7 +207,7 @@ impl Player {
             ui.label(&self.message);
         }
         ui.separator();
-        let has_wrapper = self.stream.as_ref().is_some_and(|s| s.scene.wrapper.is_some());
+        let has_wrapper = self.stream.as_ref().is_some_and(|(s, _)| s.scene.wrapper.is_some());
         for mode in ViewMode::ALL {
             ui.add_enabled_ui(has_wrapper || !mode.needs_wrapper(), |ui| {
                 ui.radio_value(&mut self.mode, mode, mode.label());
@@ -256,7 +260,7 @@ impl Player {
                 };
             }
         });
-        if let Some(stream) = &self.stream {
+        if let Some((stream, _)) = &self.stream {
             ui.separator();
             egui::ScrollArea::vertical().show(ui, |ui| {
                 for line in stream.describe() {
@@ -286,7 +290,7 @@ impl Player {
         });
         if let Some(up) = chosen {
             self.orbit = match &self.stream {
-                Some(s) => Orbit::for_scene(&s.scene, up),
+                Some((s, _)) => Orbit::for_scene(&s.scene, up),
                 None => Orbit::around(self.orbit.target, self.orbit.distance, up),
             };
             self.view = None;
@@ -337,7 +341,7 @@ impl Player {
     }
 
     fn central(&mut self, ui: &mut egui::Ui) {
-        let Some(stream) = &self.stream else {
+        let Some((stream, prepared)) = &self.stream else {
             ui.centered_and_justified(|ui| {
                 ui.label("open a stream: pwplay SCENE.pwb, the path field, Browse…, or drop a file")
             });
@@ -356,7 +360,7 @@ impl Player {
             generation: self.generation,
         };
         if self.continuous || self.shown.as_ref().is_none_or(|s| s.key != key) {
-            match picture(&self.gpu, &stream.scene, &camera, self.mode, self.residual_gain) {
+            match picture(&self.gpu, &stream.scene, prepared, &camera, self.mode, self.residual_gain) {
                 Ok((mut image, times)) => {
                     if let (Some(d), Some(i)) = (&self.dataset, self.view) {
                         d.overlay_ground_truth(i, &mut image, self.split);

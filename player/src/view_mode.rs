@@ -2,7 +2,7 @@
 //! (amplified, since R is small), or the noise the wrapper is conditioned on.
 
 use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gpu::{GpuError, GpuRenderer, Output, StageTimes};
+use pwgs_decoder::gpu::{GpuError, GpuRenderer, GpuScene, Output, StageTimes};
 use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::scene::Scene;
 use pwgs_decoder::wrapper::noise::{NOISE_LEVELS, noise_pyramid};
@@ -38,11 +38,13 @@ impl ViewMode {
     }
 }
 
-/// Renders `mode`'s picture of `camera`'s view; `gain` scales the residual. A mode that needs
-/// the wrapper falls back to [`ViewMode::Shown`] on a stream without one (callers say so).
+/// Renders `mode`'s picture of `camera`'s view of `scene` (`prepared` for `gpu`); `gain`
+/// scales the residual. A mode that needs the wrapper falls back to [`ViewMode::Shown`] on a
+/// stream without one (callers say so).
 pub fn picture(
     gpu: &GpuRenderer,
     scene: &Scene,
+    prepared: &GpuScene,
     camera: &Camera,
     mode: ViewMode,
     gain: f32,
@@ -50,9 +52,9 @@ pub fn picture(
     let options = scene.render_options();
     let (width, height) = (camera.width, camera.height);
     match (mode, &scene.wrapper) {
-        (ViewMode::Base, _) => gpu.render(scene, camera, &options, Output::Base).map(|(s, t)| (s.image, t)),
+        (ViewMode::Base, _) => gpu.render(scene, prepared, camera, &options, Output::Base).map(|(s, t)| (s.image, t)),
         (ViewMode::Residual, Some(_)) => {
-            let (shown, times) = gpu.render(scene, camera, &options, Output::Shown)?;
+            let (shown, times) = gpu.render(scene, prepared, camera, &options, Output::Shown)?;
             let r = shown.residual.unwrap_or_default();
             let data = r.iter().map(|v| (0.5 + gain * v).clamp(0.0, 1.0)).collect();
             Ok((RgbImage { width, height, data }, times))
@@ -63,6 +65,6 @@ pub fn picture(
                 noise.chunks_exact(NOISE_LEVELS).flat_map(|n| [(0.5 + 0.15 * n[0]).clamp(0.0, 1.0); 3]).collect();
             Ok((RgbImage { width, height, data }, StageTimes::default()))
         }
-        _ => gpu.render(scene, camera, &options, Output::Shown).map(|(s, t)| (s.image, t)),
+        _ => gpu.render(scene, prepared, camera, &options, Output::Shown).map(|(s, t)| (s.image, t)),
     }
 }

@@ -1,15 +1,13 @@
-//! Blending on the GPU (`blend.wgsl`): the CPU's splats and tile lists are uploaded, one
-//! workgroup blends one tile, and the base render stays in a device buffer.
+//! Blending on the GPU (`blend.wgsl`): the projection's splats stay on the device, the tile
+//! lists (of Gaussian indices, front to back) are uploaded, one workgroup blends one tile, and
+//! the base render stays in a device buffer.
 
-use crate::raster::project::Splat;
 use crate::raster::tiles::TileBins;
 use crate::raster::{Cutoff, RenderOptions};
 
 use super::buffers::{output, storage, uniform};
+use super::project::Projected;
 use super::{GpuError, GpuRenderer};
-
-/// Values per splat in the shader's array (see `blend.wgsl`).
-const SPLAT_STRIDE: usize = 12;
 
 /// The blending pipeline.
 pub struct BlendPass {
@@ -33,12 +31,13 @@ impl BlendPass {
         Self { pipeline }
     }
 
-    /// Submits the blending of `splats` (front to back, binned in `bins` over the whole image)
-    /// and returns the buffer the image lands in (interleaved RGB).
+    /// Submits the blending of the `projected` splats that `bins` lists (by Gaussian index,
+    /// front to back, over the whole image) and returns the buffer the image lands in
+    /// (interleaved RGB).
     pub fn run(
         &self,
         gpu: &GpuRenderer,
-        splats: &[Splat],
+        projected: &Projected,
         bins: &TileBins,
         options: &RenderOptions,
     ) -> Result<wgpu::Buffer, GpuError> {
@@ -48,14 +47,6 @@ impl BlendPass {
             return Err(GpuError::SmoothCutoff);
         }
         let window = bins.window;
-        let mut values = Vec::with_capacity(splats.len() * SPLAT_STRIDE);
-        let mut boxes = Vec::with_capacity(splats.len() * 4);
-        for s in splats {
-            let [l11, l21, l22] = s.cholesky;
-            values.extend([s.mean[0], s.mean[1], l11, l21, l22, s.opacity, s.color[0], s.color[1], s.color[2]]);
-            values.extend([0.0; SPLAT_STRIDE - 9]);
-            boxes.extend(s.bbox);
-        }
         let offsets: Vec<u32> = bins
             .offsets
             .iter()
@@ -75,7 +66,7 @@ impl BlendPass {
                 window.width,
                 window.height,
                 bins.tiles_x,
-                splats.len() as u32,
+                0,
                 (options.projection.alpha_min as f32).to_bits(),
                 options.alpha_max.to_bits(),
                 options.transmittance_min.to_bits(),
@@ -86,14 +77,10 @@ impl BlendPass {
                 0,
             ],
         );
-        let buffers = [
-            params,
-            storage(gpu, "splats", bytemuck::cast_slice(&values))?,
-            storage(gpu, "splat boxes", bytemuck::cast_slice(&boxes))?,
-            storage(gpu, "tile offsets", bytemuck::cast_slice(&offsets))?,
-            storage(gpu, "tile lists", bytemuck::cast_slice(&bins.entries))?,
-            output(gpu, "base render", pixels * 3)?,
-        ];
+        let offsets = storage(gpu, "tile offsets", bytemuck::cast_slice(&offsets))?;
+        let lists = storage(gpu, "tile lists", bytemuck::cast_slice(&bins.entries))?;
+        let image = output(gpu, "base render", pixels * 3)?;
+        let buffers = [&params, &projected.splats, &projected.boxes, &offsets, &lists, &image];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -112,7 +99,6 @@ impl BlendPass {
             pass.dispatch_workgroups(bins.tiles_x, bins.tiles_y, 1);
         }
         gpu.queue.submit([encoder.finish()]);
-        let [.., image] = buffers;
         Ok(image)
     }
 }

@@ -7,11 +7,11 @@ struct Params {
     width: u32,
     height: u32,
     tiles_x: u32,
-    splat_count: u32,
+    _pad0: u32,
     alpha_min: f32,
     alpha_max: f32,
     transmittance_min: f32,
-    _pad: f32,
+    _pad1: f32,
     background: vec4<f32>,
 }
 

@@ -58,6 +58,11 @@ fn check(gpu: &GpuRenderer, what: &'static str, bytes: u64) -> Result<(), GpuErr
 
 /// The first `count` f32 values of `buffer`, copied back to the host.
 pub fn read_f32(gpu: &GpuRenderer, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<f32>, GpuError> {
+    Ok(read_words(gpu, buffer, count)?.into_iter().map(f32::from_bits).collect())
+}
+
+/// The first `count` 32-bit words of `buffer`, copied back to the host.
+pub fn read_words(gpu: &GpuRenderer, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<u32>, GpuError> {
     let bytes = (count.max(1) * 4) as u64;
     let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
@@ -76,5 +81,5 @@ pub fn read_f32(gpu: &GpuRenderer, buffer: &wgpu::Buffer, count: usize) -> Resul
     gpu.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Readback(e.to_string()))?;
     receiver.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
     let view = staging.get_mapped_range(..).map_err(|e| GpuError::Readback(e.to_string()))?;
-    Ok(view.chunks_exact(4).take(count).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
+    Ok(view.chunks_exact(4).take(count).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect())
 }

@@ -2,27 +2,32 @@
 //! player and for scripts that render many views.
 //!
 //! What runs where:
-//! - CPU: the anchors' per-view MLPs ([`Scene::gaussians_for`]), projection, the depth sort and
-//!   tile binning (the reference's own code, [`crate::raster`]), and the wrapper's conditioning
-//!   (the normative noise pyramid and the Plücker rays, [`crate::wrapper::Conditioning`]).
-//! - GPU: alpha blending of the binned splats ([`blend`]) and the synthesis network f
-//!   ([`synthesis`]); the base render stays on the device between them.
+//! - CPU: the anchors' per-view MLPs ([`Scene::gaussians_for`]), the depth sort and tile
+//!   binning of the projected splats' boxes (the reference's binning, [`crate::raster::tiles`]),
+//!   and the wrapper's conditioning (the normative noise pyramid and the Plücker rays,
+//!   [`crate::wrapper::Conditioning`]).
+//! - GPU: projection ([`project`]; a plain base's Gaussians are uploaded once, by
+//!   [`GpuRenderer::prepare`]), alpha blending of the binned splats ([`blend`]) and the
+//!   synthesis network f ([`synthesis`]); splats and the base render stay on the device.
 //!
-//! The CPU rasterizer stays the definition. Blending here follows its rules in its order; only
-//! `exp` (the GPU's own) and the compiler's freedom to fuse multiply-adds differ, so images
-//! agree within a tolerance (`decoder/tests/gpu.rs` states it), not bit for bit.
+//! The CPU rasterizer stays the definition. Projection here follows its rules in f32 (with
+//! forms free of the cancellation its f64 guards against), blending follows its rules in its
+//! order, and the compiler may fuse multiply-adds, so images agree within a tolerance
+//! (`decoder/tests/gpu.rs` states it), not bit for bit.
 
 mod blend;
 mod buffers;
+mod project;
 mod synthesis;
 
 use std::time::{Duration, Instant};
 
 use crate::camera::Camera;
-use crate::raster::{RenderOptions, project_visible, sort_front_to_back, tiles};
+use crate::raster::{RenderOptions, Window, tiles};
 use crate::rgb_image::RgbImage;
-use crate::scene::{Scene, Shown};
+use crate::scene::{Base, Scene, Shown};
 use crate::wrapper::Conditioning;
+use project::DeviceGaussians;
 
 /// Why the GPU renderer cannot start or render.
 #[derive(Debug, thiserror::Error)]
@@ -39,6 +44,10 @@ pub enum GpuError {
     SmoothCutoff,
     #[error("reading the image back from the GPU failed: {0}")]
     Readback(String),
+    #[error("the GPU renderer projects SH up to degree 3; the scene has degree {0}")]
+    ShDegree(u32),
+    #[error("the scene was prepared for the GPU as another scene (prepare each scene it renders)")]
+    NotPrepared,
 }
 
 /// Which image a render returns.
@@ -53,13 +62,14 @@ pub enum Output {
 /// Where a render's time went.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct StageTimes {
-    /// The view's Gaussians (an anchor stream's MLPs), on the CPU.
+    /// The view's Gaussians (an anchor stream's MLPs, on the CPU) and their upload; nothing
+    /// for a plain base, uploaded once.
     pub gaussians: Duration,
-    /// Projection to splats, on the CPU.
+    /// Projection to splats, on the GPU.
     pub projection: Duration,
-    /// Depth sort and tile binning, on the CPU.
+    /// Reading the splats' boxes and depths back, the depth sort and tile binning (CPU).
     pub sort: Duration,
-    /// Blending on the GPU, including the upload of the splats.
+    /// Blending on the GPU, including the upload of the tile lists.
     pub raster: Duration,
     /// The wrapper: conditioning on the CPU, f on the GPU.
     pub synthesis: Duration,
@@ -79,8 +89,25 @@ pub struct GpuRenderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     adapter: wgpu::AdapterInfo,
+    project: project::ProjectPass,
     blend: blend::BlendPass,
     synthesis: synthesis::SynthesisPass,
+}
+
+/// A scene made ready for [`GpuRenderer::render`]: a plain base's Gaussians on the device
+/// (uploaded once; an anchor base's depend on the view and are uploaded at each render).
+pub struct GpuScene {
+    plain: Option<DeviceGaussians>,
+    /// Which scene this is: the address and length of its Gaussian (or anchor) arrays, which
+    /// stay put while the scene lives, so that a render of another scene is refused.
+    identity: (usize, usize),
+}
+
+fn identity(scene: &Scene) -> (usize, usize) {
+    match &scene.base {
+        Base::Plain(g) => (g.means.as_ptr() as usize, g.len()),
+        Base::Anchors(model) => (&**model as *const _ as usize, 0),
+    }
 }
 
 impl GpuRenderer {
@@ -116,9 +143,26 @@ impl GpuRenderer {
 
     /// The renderer on an existing device (shared with a window's renderer).
     pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, adapter: wgpu::AdapterInfo) -> Self {
+        let project = project::ProjectPass::new(&device);
         let blend = blend::BlendPass::new(&device);
         let synthesis = synthesis::SynthesisPass::new(&device);
-        Self { device, queue, adapter, blend, synthesis }
+        Self { device, queue, adapter, project, blend, synthesis }
+    }
+
+    /// Makes `scene` ready to render: uploads a plain base's Gaussians.
+    pub fn prepare(&self, scene: &Scene) -> Result<GpuScene, GpuError> {
+        let plain = match &scene.base {
+            Base::Plain(g) => Some(self.upload(g)?),
+            Base::Anchors(_) => None,
+        };
+        Ok(GpuScene { plain, identity: identity(scene) })
+    }
+
+    fn upload(&self, gaussians: &crate::gaussians::Gaussians) -> Result<DeviceGaussians, GpuError> {
+        if gaussians.sh_degree > 3 {
+            return Err(GpuError::ShDegree(gaussians.sh_degree));
+        }
+        DeviceGaussians::upload(self, gaussians)
     }
 
     /// The adapter's name and backend, for logs and the player's panel.
@@ -126,29 +170,43 @@ impl GpuRenderer {
         format!("{} ({:?})", self.adapter.name, self.adapter.backend)
     }
 
-    /// Renders `camera`'s view of `scene`; with [`Output::Shown`] and a wrapper, also returns
-    /// the residual R.
+    /// Renders `camera`'s view of `scene` (made ready by [`Self::prepare`] as `prepared`);
+    /// with [`Output::Shown`] and a wrapper, also returns the residual R.
     pub fn render(
         &self,
         scene: &Scene,
+        prepared: &GpuScene,
         camera: &Camera,
         options: &RenderOptions,
         output: Output,
     ) -> Result<(Shown, StageTimes), GpuError> {
+        if prepared.identity != identity(scene) {
+            return Err(GpuError::NotPrepared);
+        }
         let mut times = StageTimes::default();
         let start = Instant::now();
-        let gaussians = scene.gaussians_for(camera);
+        let per_view;
+        let gaussians = match &prepared.plain {
+            Some(g) => g,
+            None => {
+                per_view = self.upload(&scene.gaussians_for(camera))?;
+                &per_view
+            }
+        };
         times.gaussians = start.elapsed();
         let start = Instant::now();
-        let mut splats = project_visible(&gaussians, camera, &options.projection);
+        let projected = self.project.run(self, gaussians, camera, &options.projection)?;
+        self.wait();
         times.projection = start.elapsed();
         let start = Instant::now();
-        sort_front_to_back(&mut splats);
-        let bins = tiles::bin(&splats, crate::raster::Window::full(camera));
+        let (order, boxes) = projected.front_to_back(self)?;
+        let mut bins = tiles::bin_boxes(order.len(), |k| boxes[order[k] as usize], Window::full(camera));
+        // The blend pass reads splats by Gaussian index.
+        bins.entries.iter_mut().for_each(|e| *e = order[*e as usize]);
         times.sort = start.elapsed();
 
         let start = Instant::now();
-        let base = self.blend.run(self, &splats, &bins, options)?;
+        let base = self.blend.run(self, &projected, &bins, options)?;
         self.wait();
         times.raster = start.elapsed();
 

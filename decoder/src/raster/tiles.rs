@@ -121,28 +121,34 @@ fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
 /// Bins splats (already sorted front to back, pixel boxes clipped to `window`) into the
 /// window's tiles.
 pub fn bin(splats: &[Splat], window: Window) -> TileBins {
+    bin_boxes(splats.len(), |i| splats[i].bbox, window)
+}
+
+/// Bins `count` items, front to back, whose pixel boxes (x0, x1, y0, y1, clipped to `window`)
+/// `bbox` gives: `entries` are positions in that order.
+pub fn bin_boxes(count: usize, bbox: impl Fn(usize) -> [u32; 4], window: Window) -> TileBins {
     let tiles_x = window.width.div_ceil(TILE_SIZE);
     let tiles_y = window.height.div_ceil(TILE_SIZE);
     let tile_count = (tiles_x * tiles_y) as usize;
     let mut offsets = vec![0usize; tile_count + 1];
-    let for_each_tile = |s: &Splat, f: &mut dyn FnMut(usize)| {
-        let [x0, x1, y0, y1] = s.bbox;
+    let for_each_tile = |i: usize, f: &mut dyn FnMut(usize)| {
+        let [x0, x1, y0, y1] = bbox(i);
         for ty in tile_range(y0 - window.y0, y1 - window.y0) {
             for tx in tile_range(x0 - window.x0, x1 - window.x0) {
                 f((ty * tiles_x + tx) as usize);
             }
         }
     };
-    for s in splats {
-        for_each_tile(s, &mut |t| offsets[t + 1] += 1);
+    for i in 0..count {
+        for_each_tile(i, &mut |t| offsets[t + 1] += 1);
     }
     for t in 0..tile_count {
         offsets[t + 1] += offsets[t];
     }
     let mut cursor = offsets.clone();
     let mut entries = vec![0u32; offsets[tile_count]];
-    for (i, s) in splats.iter().enumerate() {
-        for_each_tile(s, &mut |t| {
+    for i in 0..count {
+        for_each_tile(i, &mut |t| {
             entries[cursor[t]] = i as u32;
             cursor[t] += 1;
         });

@@ -1,0 +1,159 @@
+//! Projection on the GPU (`project.wgsl`): Gaussians held on the device are projected to
+//! splats in place, and only what ordering needs (each splat's pixel box and depth, 20 bytes)
+//! comes back to the CPU. A plain base's Gaussians are uploaded once ([`DeviceGaussians`]), so
+//! a new view of them costs a uniform's upload, the projection and that readback.
+
+use crate::camera::Camera;
+use crate::gaussians::{Gaussians, sh_coeff_count};
+use crate::raster::project::ProjectionSettings;
+
+use super::buffers::{output, read_words, storage, uniform};
+use super::{GpuError, GpuRenderer};
+
+/// Values per splat in the buffer the projection writes and blending reads (`blend.wgsl`).
+pub const SPLAT_STRIDE: usize = 12;
+
+/// Invocations per workgroup (`project.wgsl`).
+const WORKGROUP: u32 = 64;
+
+/// The most workgroups a dispatch may have along one dimension (WebGPU's limit).
+const MAX_GROUPS_PER_DIMENSION: u32 = 65_535;
+
+/// Gaussians on the device, in `project.wgsl`'s layout: per Gaussian its mean, log scales,
+/// quaternion, opacity logit and SH coefficients.
+pub struct DeviceGaussians {
+    buffer: wgpu::Buffer,
+    count: u32,
+    sh_degree: u32,
+    stride: u32,
+}
+
+impl DeviceGaussians {
+    /// Uploads `gaussians`.
+    pub fn upload(gpu: &GpuRenderer, gaussians: &Gaussians) -> Result<Self, GpuError> {
+        assert!(gaussians.is_consistent(), "Gaussian arrays have inconsistent lengths");
+        let coefficients = 3 * sh_coeff_count(gaussians.sh_degree);
+        let stride = 11 + coefficients;
+        let mut values = Vec::with_capacity(gaussians.len() * stride);
+        for i in 0..gaussians.len() {
+            values.extend(gaussians.means[i]);
+            values.extend(gaussians.log_scales[i]);
+            values.extend(gaussians.rotations[i]);
+            values.push(gaussians.opacity_logits[i]);
+            values.extend_from_slice(gaussians.sh_of(i));
+        }
+        let too_many =
+            |_| GpuError::TooLarge { what: "Gaussians", bytes: values.len() as u64 * 4, limit: u32::MAX.into() };
+        Ok(Self {
+            buffer: storage(gpu, "Gaussians", bytemuck::cast_slice(&values))?,
+            count: u32::try_from(gaussians.len()).map_err(too_many)?,
+            sh_degree: gaussians.sh_degree,
+            stride: stride as u32,
+        })
+    }
+}
+
+/// A view's splats on the device, one slot per Gaussian (culled ones have an empty box).
+pub struct Projected {
+    /// [`SPLAT_STRIDE`] values per Gaussian.
+    pub splats: wgpu::Buffer,
+    /// x0, x1, y0, y1 per Gaussian: the pixels it covers.
+    pub boxes: wgpu::Buffer,
+    depths: wgpu::Buffer,
+    count: usize,
+}
+
+impl Projected {
+    /// The visible splats' Gaussian indices, front to back (by depth, ties by index, as
+    /// [`crate::raster::sort_front_to_back`] orders them), with every Gaussian's box.
+    pub fn front_to_back(&self, gpu: &GpuRenderer) -> Result<(Vec<u32>, Vec<[u32; 4]>), GpuError> {
+        let words = read_words(gpu, &self.boxes, 4 * self.count)?;
+        let boxes: Vec<[u32; 4]> = words.chunks_exact(4).map(|b| [b[0], b[1], b[2], b[3]]).collect();
+        let depths: Vec<f32> = read_words(gpu, &self.depths, self.count)?.into_iter().map(f32::from_bits).collect();
+        let mut order: Vec<u32> =
+            (0..self.count as u32).filter(|&i| boxes[i as usize][0] < boxes[i as usize][1]).collect();
+        order.sort_unstable_by(|&a, &b| depths[a as usize].total_cmp(&depths[b as usize]).then(a.cmp(&b)));
+        Ok((order, boxes))
+    }
+}
+
+/// The projection pipeline.
+pub struct ProjectPass {
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl ProjectPass {
+    pub fn new(device: &wgpu::Device) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("project"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("project.wgsl").into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("project"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { pipeline }
+    }
+
+    /// Submits the projection of `gaussians` for `camera`.
+    pub fn run(
+        &self,
+        gpu: &GpuRenderer,
+        gaussians: &DeviceGaussians,
+        camera: &Camera,
+        settings: &ProjectionSettings,
+    ) -> Result<Projected, GpuError> {
+        let count = gaussians.count as usize;
+        let groups = gaussians.count.div_ceil(WORKGROUP);
+        let groups_x = groups.clamp(1, MAX_GROUPS_PER_DIMENSION);
+        let groups_y = groups.div_ceil(groups_x);
+        let rows = [0, 1, 2].map(|r| camera.rotation.row(r));
+        let t = camera.translation;
+        let center = camera.center();
+        let f = |v: f32| v.to_bits();
+        #[rustfmt::skip]
+        let words = [
+            f(rows[0].x), f(rows[0].y), f(rows[0].z), f(t.x),
+            f(rows[1].x), f(rows[1].y), f(rows[1].z), f(t.y),
+            f(rows[2].x), f(rows[2].y), f(rows[2].z), f(t.z),
+            f(center.x), f(center.y), f(center.z), 0,
+            f(camera.fx), f(camera.fy), f(camera.cx), f(camera.cy),
+            f(camera.width as f32), f(camera.height as f32), f(settings.near as f32), f(settings.blur as f32),
+            f(settings.alpha_min as f32), gaussians.count, gaussians.stride, gaussians.sh_degree,
+            groups_x * WORKGROUP, 0, 0, 0,
+        ];
+        let buffers = [
+            uniform(gpu, &words),
+            output(gpu, "splats", count * SPLAT_STRIDE)?,
+            output(gpu, "splat boxes", count * 4)?,
+            output(gpu, "splat depths", count)?,
+        ];
+        let resources = [&buffers[0], &gaussians.buffer, &buffers[1], &buffers[2], &buffers[3]];
+        let entries: Vec<wgpu::BindGroupEntry> = resources
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+            .collect();
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("project"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        if count > 0 {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind_group, &[]);
+                pass.dispatch_workgroups(groups_x, groups_y, 1);
+            }
+            gpu.queue.submit([encoder.finish()]);
+        }
+        let [_, splats, boxes, depths] = buffers;
+        Ok(Projected { splats, boxes, depths, count })
+    }
+}
