@@ -105,8 +105,8 @@ fn a_random_scene_renders_alike_on_the_gpu() {
 /// e^14, 1.2 million), Gaussians larger than the scene (up to e^40, which the GPU projects in
 /// shifted units, and e^10 far away, so that they show as blobs) and tiny ones (e^-30), one just past the near plane, and ones every renderer
 /// must cull (behind the camera, NaN, an infinite scale, a zero quaternion), among ordinary
-/// ones. Not compared: axis ratios far beyond 1e8 (e.g. scales e^40 and 1), where the CPU's
-/// `a c - b^2` in f64 cancels to noise and the GPU's sum of squares does not.
+/// ones, and a line of scales e^40 and 1 (an axis ratio of 2e17, where `a c - b^2` would
+/// cancel to noise even in f64; both renderers take the determinant as a sum of squares).
 #[test]
 fn hard_gaussians_project_alike_on_the_gpu() {
     let Some(gpu) = renderer() else { return };
@@ -125,6 +125,7 @@ fn hard_gaussians_project_alike_on_the_gpu() {
     // Low opacity, so that what they cover still shows.
     gaussians.push([0.2, -0.1, 3.0], [12.0, 11.0, 10.0], q, -3.0, &sh);
     gaussians.push([-0.3, 0.2, 4.0], [40.0, 39.0, 38.5], q, -3.5, &sh);
+    gaussians.push([0.3, -0.2, 4.0], [40.0, 0.0, -5.0], q, -1.0, &sh);
     // Above e^8 and far away: blobs of tens of pixels, behind everything.
     gaussians.push([0.0, 0.0, 1e5], [10.0, 9.5, 10.2], q, 2.0, &sh);
     gaussians.push([2e4, 1e4, 1e5], [10.5, 6.0, 8.0], q, 2.0, &sh);

@@ -131,6 +131,30 @@ fn needle_with_scale_ratio_1e6() {
     assert!(alpha(20, 44) == 0.0 && alpha(44, 20) == 0.0, "needle leaked off the diagonal");
 }
 
+/// A line far longer than the view (scales e^40 and 0.1: an axis ratio of 2e18) keeps its
+/// width: across it, alpha is opacity x exp(-d^2 / 2 (w^2 + blur)), w = 0.1 f / z. With the
+/// determinant taken as `a c - b^2` the f64 subtraction loses every digit here.
+#[test]
+fn a_line_longer_than_the_view_keeps_its_width() {
+    let cam = camera(64, 64, 60.0, 60.0, 32.0, 32.0);
+    let mut g = Gaussians::with_degree(0);
+    let half_angle = std::f32::consts::PI / 8.0;
+    let q = [half_angle.cos(), 0.0, 0.0, half_angle.sin()];
+    g.push([0.0, 0.0, 4.0], [40.0, (0.1f32).ln(), (0.1f32).ln()], q, 1.0, &[0.5, 0.5, 0.5]);
+    let options = RenderOptions::default();
+    let out = rasterize(&g, &cam, &options);
+    let opacity = 1.0 / (1.0 + (-1.0f64).exp());
+    let variance = (0.1f64 * 60.0 / 4.0).powi(2) + options.projection.blur;
+    for x in 26..40u32 {
+        // Row 31's pixel centers against the diagonal through (32, 32).
+        let d = (f64::from(x) + 0.5 - 31.5) / std::f64::consts::SQRT_2;
+        let falloff = (-0.5 * d * d / variance).exp();
+        let expected = if opacity * falloff < 1.0 / 255.0 { 0.0 } else { opacity * falloff };
+        let alpha = 1.0 - f64::from(out.transmittance[(31 * 64 + x) as usize]);
+        assert!((alpha - expected).abs() < 1e-4, "pixel ({x}, 31): alpha {alpha}, expected {expected}");
+    }
+}
+
 #[test]
 fn full_screen_gaussian() {
     let cam = camera(50, 30, 30.0, 30.0, 25.0, 15.0);

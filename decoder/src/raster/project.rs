@@ -3,9 +3,9 @@
 //! pixel.
 //!
 //! Every guard is phrased positively (`if !(x > 0)` rather than `if x <= 0`) so that NaN fails
-//! it: NaN compares false with everything. The math runs in f64: it costs little next to
-//! blending, and it keeps the 2x2 determinant of needle-like Gaussians (scale ratios of 1e6)
-//! free of cancellation.
+//! it: NaN compares false with everything. The math runs in f64 (it costs little next to
+//! blending), and the 2x2 determinant and the conic's Cholesky factor come from forms without
+//! subtraction, so needle-like footprints keep their digits at any axis ratio.
 
 use glam::{DMat3, DVec3};
 
@@ -59,6 +59,8 @@ pub struct ProjectionDetail {
     pub jacobian: [DVec3; 2],
     /// 2D covariance after the blur: (xx, xy, yy).
     pub cov2d: [f64; 3],
+    /// Its determinant, from a sum of non-negative terms (see [`project_detail`]).
+    pub det: f64,
     /// Unnormalized viewing direction (mean - camera center) and its length.
     pub view_dir: DVec3,
     /// Color before the clamp at zero.
@@ -162,7 +164,6 @@ pub fn project_detail(
     let rotation = rotation_matrix(quaternion);
     let scale = DVec3::new(exp_f64(log_scale[0]), exp_f64(log_scale[1]), exp_f64(log_scale[2]));
     let m = rotation * DMat3::from_diagonal(scale);
-    let cov_cam = w2c * (m * m.transpose()) * w2c.transpose();
 
     let (slack_x, slack_y) =
         ((JACOBIAN_FOV_LIMIT - 1.0) * (left + right) / 2.0, (JACOBIAN_FOV_LIMIT - 1.0) * (top + bottom) / 2.0);
@@ -171,11 +172,17 @@ pub fn project_detail(
     let clamped = [clamped_tan_x != tan_x, clamped_tan_y != tan_y];
     let z = mean_cam.z;
     let jacobian = [DVec3::new(fx / z, 0.0, -fx * clamped_tan_x / z), DVec3::new(0.0, fy / z, -fy * clamped_tan_y / z)];
-    let cov_j0 = cov_cam * jacobian[0];
-    let cov_j1 = cov_cam * jacobian[1];
-    let cov2d =
-        [jacobian[0].dot(cov_j0) + settings.blur, jacobian[0].dot(cov_j1), jacobian[1].dot(cov_j1) + settings.blur];
-    let det = cov2d[0] * cov2d[2] - cov2d[1] * cov2d[1];
+    // The 2D covariance is B B^T + blur I with B = J W R S (2x3, rows b0 and b1), so its
+    // determinant is |b0 x b1|^2 + blur (|b0|^2 + |b1|^2) + blur^2 (Lagrange's identity): a
+    // sum of non-negative terms, where `a c - b^2` cancels to noise once the footprint's axis
+    // ratio passes about 1e8 even in f64.
+    let wm = w2c * m;
+    let b0 = wm.transpose() * jacobian[0];
+    let b1 = wm.transpose() * jacobian[1];
+    let blur = settings.blur;
+    let (n0, n1) = (b0.length_squared(), b1.length_squared());
+    let cov2d = [n0 + blur, b0.dot(b1), n1 + blur];
+    let det = b0.cross(b1).length_squared() + blur * (n0 + n1) + blur * blur;
     if !(det > 0.0 && det.is_finite() && cov2d.iter().all(|v| v.is_finite())) {
         return None;
     }
@@ -194,6 +201,7 @@ pub fn project_detail(
         clamped,
         jacobian,
         cov2d,
+        det,
         view_dir,
         color_unclamped,
         opacity,
@@ -209,7 +217,7 @@ pub fn project(g: &Gaussians, i: usize, camera: &Camera, settings: &ProjectionSe
         camera.fy as f64 * d.mean_cam.y / d.mean_cam.z + camera.cy as f64,
     ];
     let [a, b, c] = d.cov2d;
-    let det = a * c - b * b;
+    let det = d.det;
     // alpha = opacity * exp(-sigma) >= alpha_min  <=>  sigma <= ln(opacity / alpha_min): the
     // ellipse of Mahalanobis radius sqrt(2 ln(opacity / alpha_min)), whose bounding box has
     // half-sizes radius * sqrt(cov_xx) and radius * sqrt(cov_yy).
@@ -227,7 +235,8 @@ pub fn project(g: &Gaussians, i: usize, camera: &Camera, settings: &ProjectionSe
     let conic = [c / det, -b / det, a / det];
     let l11 = conic[0].sqrt();
     let l21 = conic[1] / l11;
-    let l22 = (conic[2] - l21 * l21).max(0.0).sqrt();
+    // conic_yy - l21^2 = (a c - b^2) / (c det) = 1 / c, without the subtraction.
+    let l22 = (1.0 / c).sqrt();
     Some(Splat {
         mean: mean.map(|v| v as f32),
         conic: conic.map(|v| v as f32),

@@ -55,7 +55,7 @@ pub fn projection_backward(
     // Conic = inverse of the 2D covariance: dL/dCov = -C G C, with G the gradient with respect
     // to the symmetric matrix C (its off-diagonal entries each get half of the b gradient).
     let [a, b, c] = d.cov2d;
-    let det = a * c - b * b;
+    let det = d.det;
     let conic = [c / det, -b / det, a / det];
     let gm = [v.conic[0], 0.5 * v.conic[1], v.conic[2]];
     // C G
