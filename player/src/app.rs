@@ -99,7 +99,7 @@ struct Player {
 impl Player {
     fn new(cc: &eframe::CreationContext, options: PlayerOptions) -> Result<Self> {
         let state = cc.wgpu_render_state.as_ref().ok_or_else(|| anyhow::anyhow!("eframe started without wgpu"))?;
-        let gpu = GpuRenderer::with_device(state.device.clone(), state.queue.clone(), state.adapter.get_info());
+        let gpu = GpuRenderer::with_device(state.device.clone(), state.queue.clone(), state.adapter.get_info())?;
         let dataset = match &options.scene {
             Some(dir) => Some(DatasetViews::load(dir, options.downscale)?),
             None => None,

@@ -84,6 +84,9 @@ impl StageTimes {
     }
 }
 
+/// Storage buffers the projection binds (the most of any pass; WebGPU's default limit).
+const STORAGE_BUFFERS: u32 = 8;
+
 /// A wgpu device with the renderer's pipelines.
 pub struct GpuRenderer {
     device: wgpu::Device,
@@ -131,38 +134,37 @@ impl GpuRenderer {
             required_limits: wgpu::Limits {
                 max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
                 max_buffer_size: limits.max_buffer_size,
-                // Blending binds 5 storage buffers, the synthesis network 5.
+                // Projection binds 8 storage buffers, blending 5, the synthesis network 5.
                 max_storage_buffers_per_shader_stage: limits.max_storage_buffers_per_shader_stage,
                 ..wgpu::Limits::downlevel_defaults()
             },
             ..Default::default()
         }))
         .map_err(|e| GpuError::NoDevice(e.to_string()))?;
-        Ok(Self::with_device(device, queue, adapter.get_info()))
+        Self::with_device(device, queue, adapter.get_info())
     }
 
     /// The renderer on an existing device (shared with a window's renderer).
-    pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, adapter: wgpu::AdapterInfo) -> Self {
+    pub fn with_device(device: wgpu::Device, queue: wgpu::Queue, adapter: wgpu::AdapterInfo) -> Result<Self, GpuError> {
+        let storage = device.limits().max_storage_buffers_per_shader_stage;
+        if storage < STORAGE_BUFFERS {
+            return Err(GpuError::NoDevice(format!(
+                "the device allows {storage} storage buffers per shader stage; projection binds {STORAGE_BUFFERS}"
+            )));
+        }
         let project = project::ProjectPass::new(&device);
         let blend = blend::BlendPass::new(&device);
         let synthesis = synthesis::SynthesisPass::new(&device);
-        Self { device, queue, adapter, project, blend, synthesis }
+        Ok(Self { device, queue, adapter, project, blend, synthesis })
     }
 
     /// Makes `scene` ready to render: uploads a plain base's Gaussians.
     pub fn prepare(&self, scene: &Scene) -> Result<GpuScene, GpuError> {
         let plain = match &scene.base {
-            Base::Plain(g) => Some(self.upload(g)?),
+            Base::Plain(g) => Some(DeviceGaussians::upload(self, g)?),
             Base::Anchors(_) => None,
         };
         Ok(GpuScene { plain, identity: identity(scene) })
-    }
-
-    fn upload(&self, gaussians: &crate::gaussians::Gaussians) -> Result<DeviceGaussians, GpuError> {
-        if gaussians.sh_degree > 3 {
-            return Err(GpuError::ShDegree(gaussians.sh_degree));
-        }
-        DeviceGaussians::upload(self, gaussians)
     }
 
     /// The adapter's name and backend, for logs and the player's panel.
@@ -189,7 +191,7 @@ impl GpuRenderer {
         let gaussians = match &prepared.plain {
             Some(g) => g,
             None => {
-                per_view = self.upload(&scene.gaussians_for(camera))?;
+                per_view = DeviceGaussians::upload(self, &scene.gaussians_for(camera))?;
                 &per_view
             }
         };

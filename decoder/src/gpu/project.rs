@@ -3,6 +3,8 @@
 //! comes back to the CPU. A plain base's Gaussians are uploaded once ([`DeviceGaussians`]), so
 //! a new view of them costs a uniform's upload, the projection and that readback.
 
+use rayon::slice::ParallelSliceMut;
+
 use crate::camera::Camera;
 use crate::gaussians::{Gaussians, sh_coeff_count};
 use crate::raster::project::ProjectionSettings;
@@ -20,35 +22,54 @@ const WORKGROUP: u32 = 64;
 const MAX_GROUPS_PER_DIMENSION: u32 = 65_535;
 
 /// Gaussians on the device, in `project.wgsl`'s layout: per Gaussian its mean, log scales,
-/// quaternion, opacity logit and SH coefficients.
+/// quaternion and opacity logit in one buffer, and its SH coefficients in one buffer per band
+/// (so that 1M Gaussians of degree 3 fit bindings of 128 MiB, WebGPU's default limit).
 pub struct DeviceGaussians {
-    buffer: wgpu::Buffer,
+    geometry: wgpu::Buffer,
+    bands: [wgpu::Buffer; 4],
     count: u32,
     sh_degree: u32,
-    stride: u32,
 }
 
 impl DeviceGaussians {
-    /// Uploads `gaussians`.
+    /// Uploads `gaussians` (SH degree at most 3).
     pub fn upload(gpu: &GpuRenderer, gaussians: &Gaussians) -> Result<Self, GpuError> {
         assert!(gaussians.is_consistent(), "Gaussian arrays have inconsistent lengths");
-        let coefficients = 3 * sh_coeff_count(gaussians.sh_degree);
-        let stride = 11 + coefficients;
-        let mut values = Vec::with_capacity(gaussians.len() * stride);
-        for i in 0..gaussians.len() {
-            values.extend(gaussians.means[i]);
-            values.extend(gaussians.log_scales[i]);
-            values.extend(gaussians.rotations[i]);
-            values.push(gaussians.opacity_logits[i]);
-            values.extend_from_slice(gaussians.sh_of(i));
+        if gaussians.sh_degree > 3 {
+            return Err(GpuError::ShDegree(gaussians.sh_degree));
         }
-        let too_many =
-            |_| GpuError::TooLarge { what: "Gaussians", bytes: values.len() as u64 * 4, limit: u32::MAX.into() };
+        let n = gaussians.len();
+        let count = u32::try_from(n).map_err(|_| GpuError::TooLarge {
+            what: "Gaussians",
+            bytes: n as u64 * 44,
+            limit: u32::MAX.into(),
+        })?;
+        let mut geometry = Vec::with_capacity(n * 11);
+        for i in 0..n {
+            geometry.extend(gaussians.means[i]);
+            geometry.extend(gaussians.log_scales[i]);
+            geometry.extend(gaussians.rotations[i]);
+            geometry.push(gaussians.opacity_logits[i]);
+        }
+        // Band l holds coefficients l^2 .. (l + 1)^2 of every Gaussian.
+        let per_gaussian = 3 * sh_coeff_count(gaussians.sh_degree);
+        let band = |l: usize| -> Vec<f32> {
+            if l as u32 > gaussians.sh_degree {
+                return Vec::new();
+            }
+            let (from, to) = (3 * l * l, 3 * (l + 1) * (l + 1));
+            gaussians.sh.chunks_exact(per_gaussian).flat_map(|c| c[from..to].iter().copied()).collect()
+        };
+        let names = ["SH band 0", "SH band 1", "SH band 2", "SH band 3"];
+        let mut bands = Vec::with_capacity(4);
+        for (l, name) in names.into_iter().enumerate() {
+            bands.push(storage(gpu, name, bytemuck::cast_slice(&band(l)))?);
+        }
         Ok(Self {
-            buffer: storage(gpu, "Gaussians", bytemuck::cast_slice(&values))?,
-            count: u32::try_from(gaussians.len()).map_err(too_many)?,
+            geometry: storage(gpu, "Gaussians", bytemuck::cast_slice(&geometry))?,
+            bands: bands.try_into().expect("four bands"),
+            count,
             sh_degree: gaussians.sh_degree,
-            stride: stride as u32,
         })
     }
 }
@@ -69,11 +90,15 @@ impl Projected {
     pub fn front_to_back(&self, gpu: &GpuRenderer) -> Result<(Vec<u32>, Vec<[u32; 4]>), GpuError> {
         let words = read_words(gpu, &self.boxes, 4 * self.count)?;
         let boxes: Vec<[u32; 4]> = words.chunks_exact(4).map(|b| [b[0], b[1], b[2], b[3]]).collect();
-        let depths: Vec<f32> = read_words(gpu, &self.depths, self.count)?.into_iter().map(f32::from_bits).collect();
-        let mut order: Vec<u32> =
-            (0..self.count as u32).filter(|&i| boxes[i as usize][0] < boxes[i as usize][1]).collect();
-        order.sort_unstable_by(|&a, &b| depths[a as usize].total_cmp(&depths[b as usize]).then(a.cmp(&b)));
-        Ok((order, boxes))
+        let depths = read_words(gpu, &self.depths, self.count)?;
+        // A visible splat's depth is at least the near plane, so positive: its bits order as
+        // its value, and (bits, index) in one u64 sorts as (depth, index).
+        let mut keys: Vec<u64> = (0..self.count)
+            .filter(|&i| boxes[i][0] < boxes[i][1])
+            .map(|i| (u64::from(depths[i]) << 32) | i as u64)
+            .collect();
+        keys.par_sort_unstable();
+        Ok((keys.into_iter().map(|k| k as u32).collect(), boxes))
     }
 }
 
@@ -123,7 +148,7 @@ impl ProjectPass {
             f(center.x), f(center.y), f(center.z), 0,
             f(camera.fx), f(camera.fy), f(camera.cx), f(camera.cy),
             f(camera.width as f32), f(camera.height as f32), f(settings.near as f32), f(settings.blur as f32),
-            f(settings.alpha_min as f32), gaussians.count, gaussians.stride, gaussians.sh_degree,
+            f(settings.alpha_min as f32), gaussians.count, gaussians.sh_degree, 0,
             groups_x * WORKGROUP, 0, 0, 0,
         ];
         let buffers = [
@@ -132,7 +157,8 @@ impl ProjectPass {
             output(gpu, "splat boxes", count * 4)?,
             output(gpu, "splat depths", count)?,
         ];
-        let resources = [&buffers[0], &gaussians.buffer, &buffers[1], &buffers[2], &buffers[3]];
+        let [b0, b1, b2, b3] = &gaussians.bands;
+        let resources = [&buffers[0], &gaussians.geometry, b0, b1, b2, b3, &buffers[1], &buffers[2], &buffers[3]];
         let entries: Vec<wgpu::BindGroupEntry> = resources
             .iter()
             .enumerate()

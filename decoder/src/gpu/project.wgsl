@@ -19,9 +19,8 @@ struct Params {
     size: vec4<f32>,
     alpha_min: f32,
     count: u32,
-    // Values per Gaussian in `gaussians`, and the SH degree.
-    stride: u32,
     sh_degree: u32,
+    _pad3: u32,
     // Invocations per row of the dispatch (workgroups in x times 64).
     row: u32,
     _pad0: u32,
@@ -29,17 +28,25 @@ struct Params {
     _pad2: u32,
 }
 
-// Per Gaussian, `stride` values: mean (3), log scales (3), quaternion w x y z (4), opacity
-// logit (1), then the SH coefficients, [coefficient][rgb].
 @group(0) @binding(0) var<uniform> params: Params;
+// Per Gaussian, 11 values: mean (3), log scales (3), quaternion w x y z (4), opacity logit.
 @group(0) @binding(1) var<storage, read> gaussians: array<f32>;
+// The SH coefficients, one buffer per band (so that no binding outgrows a device's limit):
+// per Gaussian 1, 3, 5 and 7 coefficients, [coefficient][rgb]; bands above the degree are
+// placeholders.
+@group(0) @binding(2) var<storage, read> band0: array<f32>;
+@group(0) @binding(3) var<storage, read> band1: array<f32>;
+@group(0) @binding(4) var<storage, read> band2: array<f32>;
+@group(0) @binding(5) var<storage, read> band3: array<f32>;
 // Per Gaussian, as blend.wgsl reads them: mean x, mean y, l11, l21, l22, opacity, r, g, b,
 // then 3 unused.
-@group(0) @binding(2) var<storage, read_write> splats: array<f32>;
+@group(0) @binding(6) var<storage, read_write> splats: array<f32>;
 // Per Gaussian: x0, x1, y0, y1 (pixels covered); all zero when culled.
-@group(0) @binding(3) var<storage, read_write> boxes: array<vec4<u32>>;
+@group(0) @binding(7) var<storage, read_write> boxes: array<vec4<u32>>;
 // Per Gaussian: camera-space z, the sort key.
-@group(0) @binding(4) var<storage, read_write> depths: array<f32>;
+@group(0) @binding(8) var<storage, read_write> depths: array<f32>;
+
+const GEOMETRY_STRIDE: u32 = 11u;
 
 const SPLAT_STRIDE: u32 = 12u;
 const JACOBIAN_FOV_LIMIT: f32 = 1.3;
@@ -101,6 +108,23 @@ fn basis(k: u32, d: vec3<f32>) -> f32 {
     }
 }
 
+// SH coefficient k (rgb) of Gaussian i.
+fn coefficient(i: u32, k: u32) -> vec3<f32> {
+    if k == 0u {
+        return vec3<f32>(band0[3u * i], band0[3u * i + 1u], band0[3u * i + 2u]);
+    }
+    if k < 4u {
+        let o = 9u * i + 3u * (k - 1u);
+        return vec3<f32>(band1[o], band1[o + 1u], band1[o + 2u]);
+    }
+    if k < 9u {
+        let o = 15u * i + 3u * (k - 4u);
+        return vec3<f32>(band2[o], band2[o + 1u], band2[o + 2u]);
+    }
+    let o = 21u * i + 3u * (k - 9u);
+    return vec3<f32>(band3[o], band3[o + 1u], band3[o + 2u]);
+}
+
 // Pixels [lo, hi) whose centers lie within [center - extent, center + extent], clipped to
 // [0, size); lo == hi when none.
 fn pixel_range(center: f32, extent: f32, size: f32) -> vec2<u32> {
@@ -126,15 +150,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if i >= params.count {
         return;
     }
-    let g = i * params.stride;
+    let g = i * GEOMETRY_STRIDE;
     let mean = vec3<f32>(gaussians[g], gaussians[g + 1u], gaussians[g + 2u]);
     let log_scale = vec3<f32>(gaussians[g + 3u], gaussians[g + 4u], gaussians[g + 5u]);
     let q = vec4<f32>(gaussians[g + 6u], gaussians[g + 7u], gaussians[g + 8u], gaussians[g + 9u]);
     let logit = gaussians[g + 10u];
     let coefficients = (params.sh_degree + 1u) * (params.sh_degree + 1u);
     var coefficients_finite = true;
-    for (var k = 0u; k < 3u * coefficients; k = k + 1u) {
-        coefficients_finite = coefficients_finite && finite(gaussians[g + 11u + k]);
+    for (var k = 0u; k < coefficients; k = k + 1u) {
+        coefficients_finite = coefficients_finite && all_finite3(coefficient(i, k));
     }
     if !(all_finite3(mean) && all_finite3(log_scale) && all_finite3(q.xyz) && finite(q.w) && finite(logit) && coefficients_finite) {
         cull(i);
@@ -238,8 +262,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let d = view_dir / length;
     var rgb = vec3<f32>(0.5, 0.5, 0.5);
     for (var k = 0u; k < coefficients; k = k + 1u) {
-        let o = g + 11u + 3u * k;
-        rgb = rgb + basis(k, d) * vec3<f32>(gaussians[o], gaussians[o + 1u], gaussians[o + 2u]);
+        rgb = rgb + basis(k, d) * coefficient(i, k);
     }
 
     let mx = fx * mean_cam.x / z + cx;
