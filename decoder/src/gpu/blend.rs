@@ -6,6 +6,7 @@ use crate::raster::tiles::TileBins;
 use crate::raster::{Cutoff, RenderOptions};
 
 use super::buffers::{output, storage, uniform};
+use super::pass::{compute_pipeline, dispatch};
 use super::project::Projected;
 use super::{GpuError, GpuRenderer};
 
@@ -16,18 +17,7 @@ pub struct BlendPass {
 
 impl BlendPass {
     pub fn new(device: &wgpu::Device) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("blend"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("blend.wgsl").into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("blend"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = compute_pipeline(device, "blend", include_str!("blend.wgsl"));
         Self { pipeline }
     }
 
@@ -81,24 +71,7 @@ impl BlendPass {
         let lists = storage(gpu, "tile lists", bytemuck::cast_slice(&bins.entries))?;
         let image = output(gpu, "base render", pixels * 3)?;
         let buffers = [&params, &projected.splats, &projected.boxes, &offsets, &lists, &image];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-            .collect();
-        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("blend"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(bins.tiles_x, bins.tiles_y, 1);
-        }
-        gpu.queue.submit([encoder.finish()]);
+        dispatch(gpu, &self.pipeline, &buffers, [bins.tiles_x, bins.tiles_y]);
         Ok(image)
     }
 }

@@ -17,6 +17,7 @@
 
 mod blend;
 mod buffers;
+mod pass;
 mod project;
 mod synthesis;
 

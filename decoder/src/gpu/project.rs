@@ -10,6 +10,7 @@ use crate::gaussians::{Gaussians, sh_coeff_count};
 use crate::raster::project::ProjectionSettings;
 
 use super::buffers::{output, read_words, storage, uniform};
+use super::pass::{compute_pipeline, dispatch};
 use super::{GpuError, GpuRenderer};
 
 /// Values per splat in the buffer the projection writes and blending reads (`blend.wgsl`).
@@ -109,18 +110,7 @@ pub struct ProjectPass {
 
 impl ProjectPass {
     pub fn new(device: &wgpu::Device) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("project"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("project.wgsl").into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("project"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = compute_pipeline(device, "project", include_str!("project.wgsl"));
         Self { pipeline }
     }
 
@@ -159,25 +149,8 @@ impl ProjectPass {
         ];
         let [b0, b1, b2, b3] = &gaussians.bands;
         let resources = [&buffers[0], &gaussians.geometry, b0, b1, b2, b3, &buffers[1], &buffers[2], &buffers[3]];
-        let entries: Vec<wgpu::BindGroupEntry> = resources
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
-            .collect();
-        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("project"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        });
         if count > 0 {
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&self.pipeline);
-                pass.set_bind_group(0, &bind_group, &[]);
-                pass.dispatch_workgroups(groups_x, groups_y, 1);
-            }
-            gpu.queue.submit([encoder.finish()]);
+            dispatch(gpu, &self.pipeline, &resources, [groups_x, groups_y]);
         }
         let [_, splats, boxes, depths] = buffers;
         Ok(Projected { splats, boxes, depths, count })
