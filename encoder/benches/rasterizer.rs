@@ -1,7 +1,8 @@
-//! Rasterizer benchmark: forward time with the scalar and the vectorized blend (and their
-//! ratio, which survives a noisy machine), backward time, blend evaluations per second, and the
-//! speedup over the naive reference renderer, for 10k / 100k / 1M random Gaussians at 504x378
-//! and 1008x756. Run with `cargo bench -p pwgs-encoder --bench rasterizer` (add `-- --quick`
+//! Rasterizer benchmark: forward and backward time with the scalar and the vectorized blend
+//! (and their ratio, which survives a noisy machine), the blending alone of each pass (the same
+//! splats and tile lists; projection, sorting and the projection's backward are shared by the
+//! two paths), blend evaluations per second, and the speedup over the naive reference renderer,
+//! for 10k / 100k / 1M random Gaussians at 504x378 and 1008x756. Run with `cargo bench -p pwgs-encoder --bench rasterizer` (add `-- --quick`
 //! for 10k and 100k only). Timings depend on the machine: report them with it.
 
 #[path = "../../decoder/tests/common/mod.rs"]
@@ -12,8 +13,9 @@ use std::time::Instant;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, rasterize};
+use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, blend_bins, rasterize};
 use pwgs_encoder::backward::backward;
+use pwgs_encoder::backward::blend::blend_backward;
 
 /// Median of `runs` timings of `f`, in seconds.
 fn time<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
@@ -61,18 +63,24 @@ fn main() {
     println!("threads: {}", rayon::current_num_threads());
     let scalar = RenderOptions { blend: BlendPath::Scalar, ..options };
     println!(
-        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>12} {:>11}",
+        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>12} {:>11}",
         "gaussians",
         "image",
         "visible",
         "fwd scalar",
         "fwd simd",
         "ratio",
+        "blend sc.",
+        "blend simd",
+        "ratio",
         "bwd scalar",
         "bwd simd",
         "ratio",
+        "bblend sc.",
+        "bblend sd.",
+        "ratio",
         "blend pairs",
-        "pairs/s fwd"
+        "pairs/s bl."
     );
     for &(width, height) in &[(504u32, 378u32), (1008, 756)] {
         let cam = camera(width, height);
@@ -84,14 +92,20 @@ fn main() {
             let weights = vec![1.0f32; rendered.color.data.len()];
             let (backward_scalar, _) = time(runs, || backward(&g, &cam, &scalar, &rendered, &weights));
             let (backward_s, _) = time(runs, || backward(&g, &cam, &options, &rendered, &weights));
+            let (blend_scalar, _) = time(runs, || blend_bins(&rendered.splats, &rendered.bins, &scalar));
+            let (blend_s, _) = time(runs, || blend_bins(&rendered.splats, &rendered.bins, &options));
+            let (bblend_scalar, _) = time(runs, || blend_backward(&rendered, &scalar, &weights));
+            let (bblend_s, _) = time(runs, || blend_backward(&rendered, &options, &weights));
             let pairs = blend_pairs(&rendered);
             println!(
-                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
+                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {blend_scalar:>10.4} {blend_s:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {bblend_scalar:>10.4} {bblend_s:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
                 format!("{width}x{height}"),
                 rendered.splats.len(),
                 forward_scalar / forward,
+                blend_scalar / blend_s,
                 backward_scalar / backward_s,
-                pairs as f64 / forward
+                bblend_scalar / bblend_s,
+                pairs as f64 / blend_s
             );
         }
     }

@@ -142,8 +142,23 @@ pub fn rasterize_window(gaussians: &Gaussians, camera: &Camera, window: Window, 
     if window != Window::full(camera) {
         splats = clip_to_window(splats, window);
     }
-    let (width, height) = (window.width, window.height);
     let bins = tiles::bin(&splats, window);
+    let Blended { color, transmittance, depth, last_contributor } = blend_bins(&splats, &bins, options);
+    Rendered { color, transmittance, depth, last_contributor, splats, bins }
+}
+
+/// The per-pixel results of blending a window, row by row.
+pub struct Blended {
+    pub color: RgbImage,
+    pub transmittance: Vec<f32>,
+    pub depth: Vec<f32>,
+    pub last_contributor: Vec<u32>,
+}
+
+/// Blends `splats` (front to back) binned in `bins` over the bins' window, band by band of
+/// tile rows in parallel, on the blend path `options` names.
+pub fn blend_bins(splats: &[Splat], bins: &TileBins, options: &RenderOptions) -> Blended {
+    let (width, height) = (bins.window.width, bins.window.height);
     let pixels = width as usize * height as usize;
     let mut color = vec![0.0f32; pixels * 3];
     let mut transmittance = vec![0.0f32; pixels];
@@ -159,11 +174,11 @@ pub fn rasterize_window(gaussians: &Gaussians, camera: &Camera, window: Window, 
         .for_each(|(ty, (((color, transmittance), depth), last_contributor))| {
             let band = blend::Band { color, transmittance, depth, last_contributor };
             match options.blend {
-                BlendPath::Scalar => blend::blend_band(ty as u32, &bins, &splats, options, band),
-                BlendPath::Vectorized => blend_simd::blend_band(ty as u32, &bins, &splats, options, band),
+                BlendPath::Scalar => blend::blend_band(ty as u32, bins, splats, options, band),
+                BlendPath::Vectorized => blend_simd::blend_band(ty as u32, bins, splats, options, band),
             }
         });
-    Rendered { color: RgbImage { width, height, data: color }, transmittance, depth, last_contributor, splats, bins }
+    Blended { color: RgbImage { width, height, data: color }, transmittance, depth, last_contributor }
 }
 
 /// The splats whose pixel box meets `window`, boxes clipped to it, order kept.
