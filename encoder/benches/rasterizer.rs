@@ -2,8 +2,9 @@
 //! (and their ratio, which survives a noisy machine), the blending alone of each pass (the same
 //! splats and tile lists; projection, sorting and the projection's backward are shared by the
 //! two paths), blend evaluations per second, and the speedup over the naive reference renderer,
-//! for 10k / 100k / 1M random Gaussians at 504x378 and 1008x756. Run with `cargo bench -p pwgs-encoder --bench rasterizer` (add `-- --quick`
-//! for 10k and 100k only). Timings depend on the machine: report them with it.
+//! for 10k / 100k / 1M random Gaussians at 504x378 and 1008x756. Run with `cargo bench -p
+//! pwgs-encoder --bench rasterizer` (add `-- --quick` for 10k and 100k only). Timings depend on
+//! the machine: report them with it.
 
 #[path = "../../decoder/tests/common/mod.rs"]
 mod common;

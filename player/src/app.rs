@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::Instant;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use eframe::egui;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gpu::{GpuRenderer, GpuScene, StageTimes};
@@ -149,19 +149,21 @@ impl Player {
     fn poll_loading(&mut self, ctx: &egui::Context) {
         let Some((path, receiver)) = &self.loading else { return };
         let Ok(result) = receiver.try_recv() else { return };
-        match result {
-            Ok(stream) => match self.gpu.prepare(&stream.scene) {
-                Ok(prepared) => {
-                    self.orbit = match (&self.dataset, self.view) {
-                        (Some(d), Some(i)) => d.orbit(i),
-                        _ => Orbit::for_scene(&stream.scene, self.orbit.up),
-                    };
-                    self.message = format!("opened {}", path.display());
-                    self.stream = Some((stream, prepared));
-                    self.generation += 1;
-                }
-                Err(e) => self.message = format!("error: {}: {e}", path.display()),
-            },
+        let prepared = result.and_then(|stream| {
+            let prepared =
+                self.gpu.prepare(&stream.scene).with_context(|| format!("cannot show {}", path.display()))?;
+            Ok((stream, prepared))
+        });
+        match prepared {
+            Ok((stream, prepared)) => {
+                self.orbit = match (&self.dataset, self.view) {
+                    (Some(d), Some(i)) => d.orbit(i),
+                    _ => Orbit::for_scene(&stream.scene, self.orbit.up),
+                };
+                self.message = format!("opened {}", path.display());
+                self.stream = Some((stream, prepared));
+                self.generation += 1;
+            }
             Err(e) => {
                 self.message = format!("error: {e:#}");
                 // A scripted window check must not wait forever for a picture that will
