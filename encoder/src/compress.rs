@@ -9,6 +9,8 @@ use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotatio
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::stream::{self, Decoded};
 
+use crate::rotation_frame::canonical_frame;
+
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
 /// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
 pub const DEFAULT_QUALITY: u8 = 5;
@@ -328,13 +330,16 @@ fn quantize(g: &Gaussians, visible: &[usize], s: &QuantizerSettings) -> PlainGau
     let rest_out = (sh_coeff_count(degree) - 1) * 3;
     let sh_rest =
         if rest_in == 0 { vec![] } else { full_rest.chunks(rest_in).flat_map(|c| c[..rest_out].to_vec()).collect() };
+    // Each Gaussian in the frame whose rotation codes smallest (the same covariance).
+    let (rotations, log_scales): (Vec<_>, Vec<_>) =
+        visible.iter().map(|&i| canonical_frame(g.rotations[i], g.log_scales[i])).unzip();
     PlainGaussians {
         positions: quantize_positions(g, visible, &grid),
         grid,
         scale_step: s.log_scale_step,
-        log_scales: visible.iter().map(|&i| g.log_scales[i].map(|v| quantize_value(v, s.log_scale_step))).collect(),
+        log_scales: log_scales.iter().map(|l| l.map(|v| quantize_value(v, s.log_scale_step))).collect(),
         rotation_step: s.rotation_step,
-        rotations: visible.iter().map(|&i| quantize_rotation(g.rotations[i], s.rotation_step)).collect(),
+        rotations: rotations.iter().map(|&q| quantize_rotation(q, s.rotation_step)).collect(),
         opacity_step: s.opacity_step,
         opacity_logits: visible.iter().map(|&i| quantize_value(g.opacity_logits[i], s.opacity_step)).collect(),
         sh_degree: degree,

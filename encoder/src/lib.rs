@@ -11,6 +11,7 @@ pub mod fidelity;
 pub mod heap;
 pub mod init;
 pub mod metrics;
+pub mod rotation_frame;
 pub mod session;
 pub mod splat_op;
 pub mod synthesis;

@@ -42,6 +42,10 @@ fn default_stream_is_faithful_and_drops_what_the_scene_does_not_need() {
     let fine = compress(&g, &QuantizerSettings::for_quality(8), &context, None).unwrap();
     let p = psnr(&render(fine.decoded.scene.plain_gaussians().unwrap(), &camera, &options), &reference);
     assert!(p > 40.0, "decoded render PSNR {p:.2} dB at quality 8");
+    // Rotations are coded in the frame nearest the identity (`rotation_frame`): w is always
+    // the largest component, far above the others (random rotations have it in a quarter).
+    let rotations = &c.decoded.scene.plain_gaussians().unwrap().rotations;
+    assert!(rotations.iter().all(|q| q[1..].iter().all(|c| c.abs() < 0.5 * q[0])), "a rotation off its frame");
     let raw = pwgs_decoder::ply::inria_ply_size(&g);
     assert!(c.bytes.len() * 8 < raw, "{} bytes against {raw} as PLY", c.bytes.len());
 }
