@@ -9,23 +9,28 @@
 //! <= w`). Coding that one takes fewer bits for the same step and the same error, and the stream
 //! format does not change: decoders see an ordinary rotation and scales.
 
+use pwgs_decoder::raster::project::rotation_matrix;
+
 /// The cube's rotations as unit quaternions `(w, x, y, z)`, each once up to sign: the identity,
 /// the half turns about the axes, the thirds of a turn about the diagonals, the quarter turns
 /// about the axes and the half turns about the face diagonals.
-fn cube_rotations() -> Vec<[f64; 4]> {
+fn cube_rotations() -> [[f64; 4]; 24] {
     let h = std::f64::consts::FRAC_1_SQRT_2;
-    let mut out = vec![[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0]];
-    for signs in 0..8u8 {
-        let s = |bit: u8| if signs >> bit & 1 == 1 { -0.5 } else { 0.5 };
-        out.push([0.5, s(0), s(1), s(2)]);
+    let mut out = [[0.0; 4]; 24];
+    for (axis, q) in out[..4].iter_mut().enumerate() {
+        q[axis] = 1.0;
     }
+    for (signs, q) in out[4..12].iter_mut().enumerate() {
+        let s = |bit: usize| if signs >> bit & 1 == 1 { -0.5 } else { 0.5 };
+        *q = [0.5, s(0), s(1), s(2)];
+    }
+    let mut next = 12;
     for i in 0..4 {
         for j in i + 1..4 {
             for sign in [1.0, -1.0] {
-                let mut q = [0.0; 4];
-                q[i] = h;
-                q[j] = sign * h;
-                out.push(q);
+                out[next][i] = h;
+                out[next][j] = sign * h;
+                next += 1;
             }
         }
     }
@@ -47,13 +52,11 @@ fn multiply(a: [f64; 4], b: [f64; 4]) -> [f64; 4] {
 /// For a cube rotation `p`, the axis each column of its matrix points along: column `j` of
 /// `R(p)` is `+-e[axis[j]]`.
 fn column_axes(p: [f64; 4]) -> [usize; 3] {
-    let [w, x, y, z] = p;
-    let columns = [
-        [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y)],
-        [2.0 * (x * y - w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + w * x)],
-        [2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)],
-    ];
-    columns.map(|c: [f64; 3]| (0..3).fold(0, |best, a| if c[a].abs() > c[best].abs() { a } else { best }))
+    let r = rotation_matrix(p);
+    std::array::from_fn(|j| {
+        let c = r.col(j).abs().to_array();
+        (0..3).fold(0, |best, a| if c[a] > c[best] { a } else { best })
+    })
 }
 
 /// The equivalent (rotation, log-scales) of a Gaussian whose unit quaternion is nearest the
@@ -66,13 +69,11 @@ pub fn canonical_frame(rotation: [f32; 4], log_scales: [f32; 3]) -> ([f32; 4], [
         return (rotation, log_scales);
     }
     let q = q.map(|c| c / norm);
+    // The first of the candidates with the largest |w|.
     let (turned, p) = cube_rotations()
-        .into_iter()
         .map(|p| (multiply(q, p), p))
-        .fold(None, |best: Option<([f64; 4], [f64; 4])>, candidate| match best {
-            Some(b) if b.0[0].abs() >= candidate.0[0].abs() => Some(b),
-            _ => Some(candidate),
-        })
+        .into_iter()
+        .reduce(|best, candidate| if best.0[0].abs() >= candidate.0[0].abs() { best } else { candidate })
         .expect("24 candidates");
     let sign = if turned[0] < 0.0 { -1.0 } else { 1.0 };
     let axes = column_axes(p);
@@ -87,14 +88,9 @@ mod tests {
     fn covariance(q: [f32; 4], s: [f32; 3]) -> [[f64; 3]; 3] {
         let q = q.map(f64::from);
         let n = q.iter().map(|c| c * c).sum::<f64>().sqrt();
-        let [w, x, y, z] = q.map(|c| c / n);
-        let r = [
-            [1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)],
-            [2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)],
-            [2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y)],
-        ];
+        let r = rotation_matrix(q.map(|c| c / n));
         std::array::from_fn(|i| {
-            std::array::from_fn(|j| (0..3).map(|k| r[i][k] * r[j][k] * (2.0 * f64::from(s[k])).exp()).sum())
+            std::array::from_fn(|j| (0..3).map(|k| r.col(k)[i] * r.col(k)[j] * (2.0 * f64::from(s[k])).exp()).sum())
         })
     }
 
