@@ -10,6 +10,7 @@ use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::stream::{self, Decoded};
 
 use crate::rotation_frame::canonical_frame;
+use crate::size_fit::{Fit, largest_fitting};
 
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
 /// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
@@ -131,10 +132,9 @@ pub fn compress(
 }
 
 /// [`compress`] into at most `target` bytes: every visible Gaussian if the stream fits, else
-/// the most important ones (see [`importance`]), as many as fit. The count is found by
-/// bisection; the stream grows with it by about a Gaussian's bytes at a time, so the result
-/// lands within a few Gaussians' bytes of the target, which makes equal-size comparisons one
-/// option away.
+/// the most important ones (see [`importance`]), as many as fit ([`largest_fitting`]): the
+/// result lands within a few Gaussians' bytes of the target, which makes equal-size
+/// comparisons one option away.
 pub fn compress_to_size(
     g: &Gaussians,
     settings: &QuantizerSettings,
@@ -145,34 +145,27 @@ pub fn compress_to_size(
     check_finite(g)?;
     let visible = visible_after_quantization(g, settings.opacity_step);
     let invisible = g.len() - visible.len();
-    let write = |keep: &[usize]| write_selected(g, keep, settings, context, wrapper);
-    let mut bytes = write(&visible)?;
-    let mut kept = visible.len();
-    if bytes.len() > target {
-        let mut ranked = visible.clone();
-        ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
-        let most_important = |k: usize| {
+    // Ranked only when the whole stream does not fit.
+    let ranked = std::cell::OnceCell::new();
+    let most_important = |k: usize| {
+        let keep = if k == visible.len() {
+            visible.clone()
+        } else {
+            let ranked = ranked.get_or_init(|| {
+                let mut ranked = visible.clone();
+                ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
+                ranked
+            });
             let mut keep = ranked[..k].to_vec();
             keep.sort_unstable();
-            write(&keep)
+            keep
         };
-        bytes = most_important(0)?;
-        if bytes.len() > target {
-            return Err(CompressError::TargetTooSmall { target, minimum: bytes.len() });
-        }
-        // Invariant: `lo` Gaussians fit (their stream is `bytes`), `hi` do not.
-        let (mut lo, mut hi) = (0, visible.len());
-        while hi - lo > 1 {
-            let mid = lo + (hi - lo) / 2;
-            let candidate = most_important(mid)?;
-            if candidate.len() <= target {
-                (lo, bytes) = (mid, candidate);
-            } else {
-                hi = mid;
-            }
-        }
-        kept = lo;
-    }
+        write_selected(g, &keep, settings, context, wrapper)
+    };
+    let (kept, bytes) = match largest_fitting(visible.len(), target, most_important)? {
+        Fit::Fits { kept, bytes } => (kept, bytes),
+        Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
+    };
     let decoded = stream::decode(&bytes)?;
     Ok(Compressed { bytes, decoded, invisible, pruned: visible.len() - kept })
 }

@@ -13,6 +13,7 @@ pub mod init;
 pub mod metrics;
 pub mod rotation_frame;
 pub mod session;
+pub mod size_fit;
 pub mod splat_op;
 pub mod synthesis;
 pub mod train;

@@ -229,7 +229,6 @@ fn an_option_the_job_would_ignore_is_refused() {
     for (args, needle) in [
         // The default base is the anchor base, which plain-only options would not reach.
         (vec![scene, "--max-gaussians", "40"], "--max-gaussians applies to the plain base"),
-        (vec![scene, "--no-wrapper", "--target-bytes", "9000", "-o", "x.pwb"], "--target-bytes applies to the plain"),
         (vec![scene, "--base", "anchor", "--quality", "3"], "--quality applies to the plain base"),
         (vec![scene, "--base", "3dgs", "--lambda", "0.01"], "--lambda applies to the anchor base"),
         (vec![scene, "--base", "3dgs", "--anchor-growth"], "--anchor-growth applies to the anchor base"),

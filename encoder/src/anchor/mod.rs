@@ -1,7 +1,8 @@
 //! The anchor base's encoder side (DESIGN.md section 8, issue 15): the initial model from a
 //! point cloud ([`init`]), training for pixels ([`train`]) with anchors grown and pruned
 //! ([`growth`]) and the stream content of a trained
-//! model ([`quantize`]), with its networks' steps chosen after training ([`network_steps`]). The model itself, and how it turns into each view's Gaussians, is the
+//! model ([`quantize`]), with its networks' steps chosen after training ([`network_steps`]) and, for a byte budget, its
+//! least important anchors dropped ([`trim`]). The model itself, and how it turns into each view's Gaussians, is the
 //! decoder's [`pwgs_decoder::anchor`].
 
 pub mod context;
@@ -12,3 +13,4 @@ pub mod network_steps;
 pub mod quantize;
 pub mod rate;
 pub mod train;
+pub mod trim;

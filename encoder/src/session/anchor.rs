@@ -20,6 +20,7 @@ use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::network_steps::{StepCandidate, StepObjective, choose_context_step, choose_mlp_steps};
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
+use crate::anchor::trim::fit_anchors;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
 use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians};
@@ -65,6 +66,9 @@ pub struct AnchorJob {
     pub wrapper: Option<WrapperTraining>,
     /// Write the stream here.
     pub output: Option<PathBuf>,
+    /// Largest stream size in bytes: the anchors that show least are dropped to fit
+    /// ([`crate::anchor::trim`]).
+    pub target_bytes: Option<u64>,
     /// Write the decoded anchors as standard Gaussians (SH degree 3 fitted over the training
     /// cameras) to this PLY.
     pub export_ply: Option<PathBuf>,
@@ -117,6 +121,9 @@ pub struct AnchorReport {
     pub growth: Option<GrowthTotals>,
     /// Anchors in the stream (those with an open mask).
     pub stream_anchors: usize,
+    pub target_bytes: Option<u64>,
+    /// Anchors dropped to meet the target size.
+    pub anchors_dropped_to_fit: usize,
     /// The stream (also when none was written to a file: the evaluation renders its decoding).
     pub stream: AnchorStreamSummary,
     pub mean: Option<MeanScore>,
@@ -271,7 +278,20 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         }
         None => None,
     };
-    let (bytes, Decoded { scene, .. }) = encode_and_decode(&header, &content, wrapper.as_ref())?;
+    let (content, bytes, dropped) = match job.target_bytes {
+        Some(target) => {
+            let target = usize::try_from(target).unwrap_or(usize::MAX);
+            let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
+            let fitted = fit_anchors(content, &header, wrapper.as_ref(), target, &cameras)?;
+            println!("target {target} bytes: {} least important anchors dropped to fit", fitted.2);
+            fitted
+        }
+        None => {
+            let bytes = stream::encode(&header, &content, wrapper.as_ref())?;
+            (content, bytes, 0)
+        }
+    };
+    let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
     if let Some(path) = &job.output {
         pwgs_decoder::atomic_file::write_atomically(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
@@ -330,6 +350,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         context_grid_bytes,
         growth,
         stream_anchors: content.len(),
+        target_bytes: job.target_bytes,
+        anchors_dropped_to_fit: dropped,
         stream: stream_summary,
         mean,
         views,

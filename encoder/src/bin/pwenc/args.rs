@@ -22,8 +22,9 @@ use crate::values::{
 };
 use crate::wrapper_args::WrapperArgs;
 
-/// Options only the plain base reads: the anchor base sets its size with --lambda.
-const PLAIN_ONLY: &[&str] = &["quality", "target_bytes", "max_gaussians", "init_ply", "densify_until", "position_lr"];
+/// Options only the plain base reads: the anchor base sets its size with --lambda (and
+/// --target-bytes).
+const PLAIN_ONLY: &[&str] = &["quality", "max_gaussians", "init_ply", "densify_until", "position_lr"];
 /// Options only the anchor base reads.
 const ANCHOR_ONLY: &[&str] = &[
     "anchor_features",
@@ -78,8 +79,10 @@ pub(crate) struct EncodeArgs {
     #[arg(long, default_value_t = DEFAULT_QUALITY, value_parser = clap::value_parser!(u8).range(0..=MAX_QUALITY as i64))]
     quality: u8,
     /// Largest stream size in bytes: when the stream would be larger, the least important
-    /// Gaussians (lowest opacity times area) are dropped until it fits. Two runs with the
-    /// same target compare at equal size (within a few Gaussians' bytes).
+    /// Gaussians (plain base: lowest opacity times area) or anchors (anchor base: least
+    /// opacity times area over the training views) are dropped until it fits. Two runs with
+    /// the same target compare at equal size (within a few Gaussians' bytes); on the anchor
+    /// base, choose a --lambda whose stream is a little larger than the target.
     #[arg(long, requires = "output", value_parser = clap::value_parser!(u64).range(1..))]
     target_bytes: Option<u64>,
     /// With --from-ply: render this many views on an orbit around the model, from the input and
@@ -301,6 +304,7 @@ impl EncodeArgs {
             wrapper: self.wrapper.training(self.iters, self.seed, self.weight_dirs(), ANCHOR_STAGE_TWO_LR_SCALE)?,
             export_ply: self.export_ply.clone(),
             output: self.output.clone(),
+            target_bytes: self.target_bytes,
             eval: self.eval_options()?,
             report: self.report.clone(),
         })
