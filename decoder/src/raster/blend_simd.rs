@@ -44,6 +44,7 @@ pub struct AlphaLanes {
 
 /// The offsets from splat `s`'s center of the eight pixel centers from column `start` on, as
 /// the scalar path computes each: `mean_x - (px + 0.5)`.
+#[inline]
 pub fn chunk_dx(s: &Splat, start: u32) -> f32x8 {
     f32x8::splat(s.mean[0]) - (f32x8::splat(start as f32) + f32x8::new(LANE_CENTERS))
 }

@@ -4,6 +4,10 @@
 //! it differs from the scalar sum only by rounding (the tests bound it) and does not depend
 //! on the number of threads. Alpha and falloff come from the forward pass's vector function
 //! (`splat_alpha8`, eight pixels at a time, the scalar `splat_alpha`'s bits).
+//!
+//! As in the forward pass, each row of a splat's box is walked in chunks of eight pixels that
+//! start at the box's first column, over per-pixel state in rows of 16 (plus a chunk's worth
+//! of padding): one chunk for most splats' rows, where a fixed grid of chunks cuts many in two.
 
 use pwgs_decoder::raster::blend::SMOOTH_CUTOFF_BAND;
 use pwgs_decoder::raster::blend_simd::{LANES as CHUNK, chunk_dx, splat_alpha8};
@@ -14,18 +18,32 @@ use wide::f64x4;
 use super::blend::{EntryGrad, SplatGrad};
 
 const LANES: usize = 4;
-const QUADS_PER_ROW: usize = TILE_SIZE as usize / LANES;
-const QUADS: usize = TILE_SIZE as usize * QUADS_PER_ROW;
+const ROW: usize = TILE_SIZE as usize;
+const STATE_LEN: usize = ROW * ROW + CHUNK;
 
-/// Per-pixel state of the walk, four pixels a vector (see `PixelState` in [`super::blend`]).
+type Pixels = [f64; STATE_LEN];
+
+/// Per-pixel state of the walk (see `PixelState` in [`super::blend`]), rows of 16 pixels.
 struct TileState {
-    v_color: [[f64x4; QUADS]; 3],
-    transmittance: [f64x4; QUADS],
-    t_final: [f64x4; QUADS],
-    bg_term: [f64x4; QUADS],
-    behind: [[f64x4; QUADS]; 3],
-    /// Splats at tile positions >= this were not blended into the pixel (0 outside the tile).
-    last: [[usize; LANES]; QUADS],
+    v_color: [Pixels; 3],
+    transmittance: Pixels,
+    t_final: Pixels,
+    bg_term: Pixels,
+    behind: [Pixels; 3],
+    /// Splats at tile positions >= this were not blended into the pixel (0 outside the tile),
+    /// as f64 (exact) to compare in lanes.
+    last: Pixels,
+}
+
+/// Four values of `a` from `o` on.
+#[inline]
+fn load(a: &Pixels, o: usize) -> f64x4 {
+    f64x4::new(a[o..o + LANES].try_into().expect("four values"))
+}
+
+#[inline]
+fn store(a: &mut Pixels, o: usize, v: f64x4) {
+    a[o..o + LANES].copy_from_slice(&v.to_array());
 }
 
 /// Per-lane sums of one splat's gradient.
@@ -46,42 +64,36 @@ fn lane_sum(v: f64x4) -> f64 {
 fn load_state(t: usize, rendered: &Rendered, options: &RenderOptions, v_color: &[f32]) -> TileState {
     let bins = &rendered.bins;
     let [x0, x1, y0, y1] = bins.tile_rect(t);
-    let zero = [f64x4::splat(0.0); QUADS];
+    let zero = [0.0; STATE_LEN];
     let mut s = TileState {
         v_color: [zero; 3],
         transmittance: zero,
         t_final: zero,
         bg_term: zero,
         behind: [zero; 3],
-        last: [[0; LANES]; QUADS],
+        last: zero,
     };
     for py in y0..y1 {
-        for q in 0..QUADS_PER_ROW {
-            let i = (py - y0) as usize * QUADS_PER_ROW + q;
-            let mut v = [[0.0; LANES]; 3];
-            let (mut t_final, mut bg) = ([0.0; LANES], [0.0; LANES]);
-            for lane in 0..LANES {
-                let px = x0 + (q * LANES + lane) as u32;
-                if px >= x1 {
-                    break;
-                }
-                let p = bins.pixel_index(px, py);
-                for c in 0..3 {
-                    v[c][lane] = f64::from(v_color[p * 3 + c]);
-                }
-                t_final[lane] = f64::from(rendered.transmittance[p]);
-                bg[lane] = (0..3).map(|c| f64::from(options.background[c]) * v[c][lane]).sum();
-                s.last[i][lane] = rendered.last_contributor[p] as usize;
-            }
+        for px in x0..x1 {
+            let i = (py - y0) as usize * ROW + (px - x0) as usize;
+            let p = bins.pixel_index(px, py);
+            let v = [0, 1, 2].map(|c| f64::from(v_color[p * 3 + c]));
             for c in 0..3 {
-                s.v_color[c][i] = f64x4::new(v[c]);
+                s.v_color[c][i] = v[c];
             }
-            s.transmittance[i] = f64x4::new(t_final);
-            s.t_final[i] = f64x4::new(t_final);
-            s.bg_term[i] = f64x4::new(bg);
+            s.transmittance[i] = f64::from(rendered.transmittance[p]);
+            s.t_final[i] = s.transmittance[i];
+            s.bg_term[i] = (0..3).map(|c| f64::from(options.background[c]) * v[c]).sum();
+            s.last[i] = f64::from(rendered.last_contributor[p]);
         }
     }
     s
+}
+
+/// The lanes of a four-lane mask whose bits (lane l: bit l) are set.
+#[inline]
+fn mask_of_bits(bits: u32) -> f64x4 {
+    f64x4::new([0, 1, 2, 3].map(|l| f64::from((bits >> l) & 1))).simd_eq(f64x4::splat(1.0))
 }
 
 /// [`super::blend`]'s `alpha_slope` on four lanes.
@@ -113,7 +125,7 @@ pub(super) fn tile_backward(
     let bins = &rendered.bins;
     let [x0, x1, y0, y1] = bins.tile_rect(t);
     let mut state = load_state(t, rendered, options, v_color);
-    let deepest = state.last.iter().flatten().copied().max().unwrap_or(0);
+    let deepest = state.last.iter().copied().fold(0.0, f64::max) as usize;
     let (one, zero) = (f64x4::splat(1.0), f64x4::splat(0.0));
     for (k, s) in bins.splats(t, &rendered.splats, ListOrder::BackToFront { end: deepest }) {
         let s = &s;
@@ -125,44 +137,50 @@ pub(super) fn tile_backward(
         let [a, b, c_conic] = s.conic.map(f64::from).map(f64x4::splat);
         let opacity = f64x4::splat(f64::from(s.opacity));
         let color = s.color.map(|v| f64x4::splat(f64::from(v)));
+        let position = f64x4::splat(k as f64);
+        // At most two chunks a row, from the box's first column: their offsets from the
+        // splat's center and the lanes inside the box, the same on every row.
+        let chunks = ((xb - xa) as usize).div_ceil(CHUNK);
+        let dx8 = [0, 1].map(|c| chunk_dx(s, xa + (c * CHUNK) as u32));
+        let dx = [0, 1].map(|c| {
+            let v = dx8[c].to_array();
+            [0, 1].map(|h| f64x4::new([0, 1, 2, 3].map(|l| f64::from(v[h * LANES + l]))))
+        });
+        let width = (xb - xa) as usize;
+        let inside: [u32; 2] = [0, 1].map(|c| (1u32 << width.saturating_sub(c * CHUNK).min(CHUNK)) - 1);
         let mut sums = Sums::default();
         for py in by0.max(y0)..by1.min(y1) {
             let dy_f32 = s.mean[1] - (py as f32 + 0.5);
             let dy = f64x4::splat(f64::from(dy_f32));
-            let row = (py - y0) as usize * QUADS_PER_ROW;
-            for c in ((xa - x0) as usize / CHUNK)..=((xb - 1 - x0) as usize / CHUNK) {
+            let row = (py - y0) as usize * ROW + (xa - x0) as usize;
+            for c in 0..chunks {
                 // Alpha for eight pixels with the forward pass's own vector function.
-                let start = x0 + (c * CHUNK) as u32;
-                let lanes = splat_alpha8(s, chunk_dx(s, start), dy_f32, options);
-                let (alpha8, falloff8, contributes) =
-                    (lanes.alpha.to_array(), lanes.falloff.to_array(), lanes.contributes.to_bitmask());
-                let dx8 = chunk_dx(s, start).to_array();
+                let lanes = splat_alpha8(s, dx8[c], dy_f32, options);
+                let live = lanes.contributes.to_bitmask() as u32 & inside[c];
+                if live == 0 {
+                    continue;
+                }
+                let (alpha8, falloff8) = (lanes.alpha.to_array(), lanes.falloff.to_array());
                 for half in 0..CHUNK / LANES {
-                    let i = row + c * (CHUNK / LANES) + half;
-                    let mut valid = [0.0; LANES];
-                    for lane in 0..LANES {
-                        let j = half * LANES + lane;
-                        let px = start + j as u32;
-                        if px >= xa && px < xb && k < state.last[i][lane] && contributes & (1 << j) != 0 {
-                            valid[lane] = 1.0;
-                        }
-                    }
-                    let valid = f64x4::new(valid).simd_eq(one);
+                    let i = row + c * CHUNK + half * LANES;
+                    let valid = mask_of_bits(live >> (half * LANES)) & position.simd_lt(load(&state.last, i));
                     if !valid.any() {
                         continue;
                     }
                     let widen = |v: &[f32; CHUNK]| f64x4::new([0, 1, 2, 3].map(|l| f64::from(v[half * LANES + l])));
-                    let (alpha, falloff, dx) = (widen(&alpha8), widen(&falloff8), widen(&dx8));
+                    let (alpha, falloff, dx) = (widen(&alpha8), widen(&falloff8), dx[c][half]);
                     let ra = one / (one - alpha);
-                    let trans = state.transmittance[i] * ra;
-                    state.transmittance[i] = valid.select(trans, state.transmittance[i]);
-                    let mut v_alpha = -state.t_final[i] * ra * state.bg_term[i];
+                    let before = load(&state.transmittance, i);
+                    let trans = before * ra;
+                    store(&mut state.transmittance, i, valid.select(trans, before));
+                    let t_final = load(&state.t_final, i);
+                    let mut v_alpha = -t_final * ra * load(&state.bg_term, i);
                     for ch in 0..3 {
-                        let vc = state.v_color[ch][i];
+                        let vc = load(&state.v_color[ch], i);
+                        let behind = load(&state.behind[ch], i);
                         sums.color[ch] += valid.select(alpha * trans * vc, zero);
-                        v_alpha += (color[ch] * trans - state.behind[ch][i] * ra) * vc;
-                        let behind = state.behind[ch][i] + color[ch] * alpha * trans;
-                        state.behind[ch][i] = valid.select(behind, state.behind[ch][i]);
+                        v_alpha += (color[ch] * trans - behind * ra) * vc;
+                        store(&mut state.behind[ch], i, valid.select(behind + color[ch] * alpha * trans, behind));
                     }
                     let v_raw = v_alpha * alpha_slope(opacity * falloff, options);
                     sums.opacity += valid.select(falloff * v_raw, zero);
