@@ -321,21 +321,24 @@ fn output_is_identical_for_any_thread_count() {
     assert_eq!(one.splats, many.splats);
 }
 
-/// The vectorized blend gives the scalar reference's bits: colors, transmittance, depth and
-/// last contributors, on edge tiles (sizes off the 16-pixel grid), windows, dense tiles that
-/// saturate, and both cutoffs.
+/// The vectorized blend (AVX2 and portable) gives the scalar reference's bits: colors,
+/// transmittance, depth and last contributors, on edge tiles (sizes off the 16-pixel grid),
+/// windows, dense tiles that saturate, and both cutoffs.
 #[test]
 fn vectorized_blending_matches_the_scalar_path_bit_for_bit() {
     use pwgs_decoder::raster::{BlendPath, Cutoff};
     let check = |g: &Gaussians, cam: &pwgs_decoder::camera::Camera, window: Window, cutoff: Cutoff, what: &str| {
         let options = RenderOptions { background: [0.25, 0.5, 0.75], cutoff, ..Default::default() };
         let scalar = rasterize_window(g, cam, window, &RenderOptions { blend: BlendPath::Scalar, ..options });
-        let vector = rasterize_window(g, cam, window, &RenderOptions { blend: BlendPath::Vectorized, ..options });
-        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        assert_eq!(bits(&vector.color.data), bits(&scalar.color.data), "{what}: colors");
-        assert_eq!(bits(&vector.transmittance), bits(&scalar.transmittance), "{what}: transmittance");
-        assert_eq!(bits(&vector.depth), bits(&scalar.depth), "{what}: depth");
-        assert_eq!(vector.last_contributor, scalar.last_contributor, "{what}: last contributors");
+        // Both vector paths: AVX2 where this CPU has it, and `wide`'s portable vectors.
+        for path in [BlendPath::Vectorized, BlendPath::Portable] {
+            let vector = rasterize_window(g, cam, window, &RenderOptions { blend: path, ..options });
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&vector.color.data), bits(&scalar.color.data), "{what} {path:?}: colors");
+            assert_eq!(bits(&vector.transmittance), bits(&scalar.transmittance), "{what} {path:?}: transmittance");
+            assert_eq!(bits(&vector.depth), bits(&scalar.depth), "{what} {path:?}: depth");
+            assert_eq!(vector.last_contributor, scalar.last_contributor, "{what} {path:?}: last contributors");
+        }
         assert!(scalar.transmittance.iter().any(|&t| t < 0.5), "{what}: the scene covers the view");
     };
     for (seed, n, (w, h)) in [(21u64, 300, (64, 48)), (22, 800, (37, 29)), (23, 2000, (83, 41)), (24, 60, (9, 17))] {

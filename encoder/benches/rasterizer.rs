@@ -1,7 +1,8 @@
 //! Rasterizer benchmark: forward and backward time with the scalar and the vectorized blend
 //! (and their ratio, which survives a noisy machine), the blending alone of each pass (the same
 //! splats and tile lists; projection, sorting and the projection's backward are shared by the
-//! two paths), blend evaluations per second, and the speedup over the naive reference renderer,
+//! two paths; the vectorized blend in AVX2 registers where the CPU has them, and in `wide`'s
+//! portable vectors, what other CPUs run, with its ratio to the scalar path), blend evaluations per second, and the speedup over the naive reference renderer,
 //! for 10k / 100k / 1M random Gaussians at 504x378 and 1008x756. Run with `cargo bench -p
 //! pwgs-encoder --bench rasterizer` (add `-- --quick` for 10k and 100k only). Timings depend on
 //! the machine: report them with it.
@@ -63,8 +64,9 @@ fn main() {
     let options = RenderOptions::default();
     println!("threads: {}", rayon::current_num_threads());
     let scalar = RenderOptions { blend: BlendPath::Scalar, ..options };
+    let portable = RenderOptions { blend: BlendPath::Portable, ..options };
     println!(
-        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>12} {:>11}",
+        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>6} {:>12} {:>11}",
         "gaussians",
         "image",
         "visible",
@@ -74,11 +76,15 @@ fn main() {
         "blend sc.",
         "blend simd",
         "ratio",
+        "blend port",
+        "ratio",
         "bwd scalar",
         "bwd simd",
         "ratio",
         "bblend sc.",
         "bblend sd.",
+        "ratio",
+        "bblend pt.",
         "ratio",
         "blend pairs",
         "pairs/s bl."
@@ -95,17 +101,21 @@ fn main() {
             let (backward_s, _) = time(runs, || backward(&g, &cam, &options, &rendered, &weights));
             let (blend_scalar, _) = time(runs, || blend_bins(&rendered.splats, &rendered.bins, &scalar));
             let (blend_s, _) = time(runs, || blend_bins(&rendered.splats, &rendered.bins, &options));
+            let (blend_p, _) = time(runs, || blend_bins(&rendered.splats, &rendered.bins, &portable));
             let (bblend_scalar, _) = time(runs, || blend_backward(&rendered, &scalar, &weights));
             let (bblend_s, _) = time(runs, || blend_backward(&rendered, &options, &weights));
+            let (bblend_p, _) = time(runs, || blend_backward(&rendered, &portable, &weights));
             let pairs = blend_pairs(&rendered);
             println!(
-                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {blend_scalar:>10.4} {blend_s:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {bblend_scalar:>10.4} {bblend_s:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
+                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {blend_scalar:>10.4} {blend_s:>10.4} {:>6.2} {blend_p:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {bblend_scalar:>10.4} {bblend_s:>10.4} {:>6.2} {bblend_p:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
                 format!("{width}x{height}"),
                 rendered.splats.len(),
                 forward_scalar / forward,
                 blend_scalar / blend_s,
+                blend_scalar / blend_p,
                 backward_scalar / backward_s,
                 bblend_scalar / bblend_s,
+                bblend_scalar / bblend_p,
                 pairs as f64 / blend_s
             );
         }

@@ -174,16 +174,22 @@ fn vectorized_backward_matches_the_scalar_walk() {
         let mut rng = SplitMix64(seed + 100);
         let v_color: Vec<f32> = (0..rendered.color.data.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
         let grads = |blend| blend_backward(&rendered, &RenderOptions { blend, ..options }, &v_color);
-        let (scalar, vector) = (grads(BlendPath::Scalar), grads(BlendPath::Vectorized));
         let flat = |gs: &[pwgs_encoder::backward::blend::SplatGrad]| -> Vec<f64> {
             gs.iter().flat_map(|g| g.mean.into_iter().chain(g.conic).chain([g.opacity]).chain(g.color)).collect()
         };
-        let (a, b) = (flat(&scalar), flat(&vector));
+        let a = flat(&grads(BlendPath::Scalar));
         let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        let worst = a.iter().zip(&b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-        // Per entry the sums are stored in f32: a different f64 order may round an entry's
-        // last f32 bit differently, so the bound is f32's precision at the largest value.
-        assert!(worst <= 1e-6 * scale, "seed {seed}: worst difference {worst} against scale {scale}");
         assert!(a.iter().filter(|v| **v != 0.0).count() > a.len() / 2, "seed {seed}: most gradients are non-zero");
+        // Both vector paths: AVX2 where this CPU has it, and `wide`'s portable vectors.
+        let (avx, portable) = (flat(&grads(BlendPath::Vectorized)), flat(&grads(BlendPath::Portable)));
+        for b in [&avx, &portable] {
+            let worst = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+            // Per entry the sums are stored in f32: a different f64 order may round an
+            // entry's last f32 bit differently, so the bound is f32's precision at the largest
+            // value.
+            assert!(worst <= 1e-6 * scale, "seed {seed}: worst difference {worst} against scale {scale}");
+        }
+        // The two vector paths do the same operations in the same order.
+        assert_eq!(avx, portable, "seed {seed}: AVX2 and portable lanes differ");
     }
 }

@@ -1,4 +1,5 @@
-//! Front-to-back blending eight pixels of a tile row at a time (`wide::f32x8`): the same
+//! Front-to-back blending eight pixels of a tile row at a time (eight f32 lanes: AVX2 where the
+//! CPU has it, else `wide::f32x8`, see [`super::lanes`]): the same
 //! arithmetic as [`super::blend`], lane by lane and in the same order, so the image is bit for
 //! bit the scalar path's (the tests compare them) at a fraction of its time.
 //!
@@ -6,7 +7,9 @@
 //! chunk for a box up to eight pixels wide, two up to the tile's 16), not at fixed columns:
 //! most splats are a few pixels wide, and a fixed grid would cut half of their rows in two.
 
-use wide::{f32x8, i32x8, u32x8};
+#[cfg(target_arch = "x86_64")]
+use super::lanes::Avx2;
+use super::lanes::{Lanes8, Portable};
 
 use super::blend::{Band, SMOOTH_CUTOFF_BAND};
 use super::project::Splat;
@@ -18,52 +21,56 @@ use crate::portable_math::{EXP_F32_COEFFICIENTS, EXP_F32_HI, EXP_F32_LN2_HI, EXP
 pub const LANES: usize = 8;
 
 /// [`crate::portable_math::exp_f32`] on eight lanes, operation for operation.
-#[inline]
-fn exp8(x: f32x8) -> f32x8 {
-    let round = f32x8::splat(ROUND_F32);
-    let k = (x * f32x8::splat(std::f32::consts::LOG2_E) + round) - round;
-    let r = (x - k * f32x8::splat(EXP_F32_LN2_HI)) - k * f32x8::splat(EXP_F32_LN2_LO);
-    let p = EXP_F32_COEFFICIENTS.iter().fold(f32x8::splat(0.0), |p, &c| p * r + f32x8::splat(c));
-    // k << 23 as k * 2^23 in f32 (exact: k is a whole number of at most 129 in magnitude
-    // wherever the result is kept), because `wide`'s shift by a constant builds its count on
-    // the stack and reloads it, a stalled store forwarding that took 12% of the blend.
-    let shift: u32x8 = bytemuck::cast((k * f32x8::splat(8_388_608.0)).trunc_int());
-    let scaled = f32x8::from_bits(p.to_bits() + shift);
-    let scaled = x.simd_gt(f32x8::splat(EXP_F32_HI)).select(f32x8::splat(f32::INFINITY), scaled);
-    x.simd_lt(f32x8::splat(EXP_F32_LO)).select(f32x8::splat(0.0), scaled)
+#[inline(always)]
+fn exp8<L: Lanes8>(l: L, x: L::V) -> L::V {
+    let round = l.splat(ROUND_F32);
+    let k = l.sub(l.add(l.mul(x, l.splat(std::f32::consts::LOG2_E)), round), round);
+    let r = l.sub(l.sub(x, l.mul(k, l.splat(EXP_F32_LN2_HI))), l.mul(k, l.splat(EXP_F32_LN2_LO)));
+    // Loops, not closures, here and in the blend: a closure is a function of its own, compiled
+    // without the AVX2 features, and the operations in it would not be inlined.
+    let mut p = l.splat(0.0);
+    for c in EXP_F32_COEFFICIENTS {
+        p = l.add(l.mul(p, r), l.splat(c));
+    }
+    // k << 23 as the integer k * 2^23 (exact: k is a whole number of at most 129 in magnitude
+    // wherever the result is kept): `wide`'s shift by a constant builds its count on the stack
+    // and reloads it, a stalled store forwarding that took 12% of the blend.
+    let scaled = l.add_bits(p, l.trunc_int(l.mul(k, l.splat(8_388_608.0))));
+    let scaled = l.select(l.gt(x, l.splat(EXP_F32_HI)), l.splat(f32::INFINITY), scaled);
+    l.select(l.lt(x, l.splat(EXP_F32_LO)), l.splat(0.0), scaled)
 }
 
 /// [`super::blend::splat_alpha`] at eight pixels of a row.
 #[derive(Debug, Clone, Copy)]
-pub struct AlphaLanes {
-    pub alpha: f32x8,
-    pub falloff: f32x8,
+pub struct AlphaLanes<V> {
+    pub alpha: V,
+    pub falloff: V,
     /// All ones in the lanes where the splat contributes (its alpha reaches alpha_min).
-    pub contributes: f32x8,
+    pub contributes: V,
 }
 
 /// The offsets from splat `s`'s center of the eight pixel centers from column `start` on, as
 /// the scalar path computes each: `mean_x - (px + 0.5)`.
-#[inline]
-pub fn chunk_dx(s: &Splat, start: u32) -> f32x8 {
-    f32x8::splat(s.mean[0]) - (f32x8::splat(start as f32) + f32x8::new(LANE_CENTERS))
+#[inline(always)]
+pub fn chunk_dx<L: Lanes8>(l: L, s: &Splat, start: u32) -> L::V {
+    l.sub(l.splat(s.mean[0]), l.add(l.splat(start as f32), l.load_array(LANE_CENTERS)))
 }
 
 /// [`super::blend::splat_alpha`] on eight lanes, operation for operation: offsets `dx` (see
 /// [`chunk_dx`]) on a row at offset `dy`.
-#[inline]
-pub fn splat_alpha8(s: &Splat, dx: f32x8, dy: f32, options: &RenderOptions) -> AlphaLanes {
+#[inline(always)]
+pub fn splat_alpha8<L: Lanes8>(l: L, s: &Splat, dx: L::V, dy: f32, options: &RenderOptions) -> AlphaLanes<L::V> {
     let [l11, l21, l22] = s.cholesky;
     let q = l22 * dy;
-    let p = f32x8::splat(l11) * dx + f32x8::splat(l21 * dy);
-    let falloff = exp8(f32x8::splat(-0.5) * (p * p + f32x8::splat(q * q)));
-    let raw = f32x8::splat(s.opacity) * falloff;
+    let p = l.add(l.mul(l.splat(l11), dx), l.splat(l21 * dy));
+    let falloff = exp8(l, l.mul(l.splat(-0.5), l.add(l.mul(p, p), l.splat(q * q))));
+    let raw = l.mul(l.splat(s.opacity), falloff);
     let alpha_min = options.projection.alpha_min as f32;
-    let contributes = !raw.simd_lt(f32x8::splat(alpha_min));
-    let mut alpha = raw.min(f32x8::splat(options.alpha_max));
+    let contributes = l.and_not(l.splat(f32::from_bits(u32::MAX)), l.lt(raw, l.splat(alpha_min)));
+    let mut alpha = l.min(raw, l.splat(options.alpha_max));
     if options.cutoff == Cutoff::Smooth {
-        let t = ((raw - f32x8::splat(alpha_min)) / f32x8::splat(SMOOTH_CUTOFF_BAND)).min(f32x8::splat(1.0));
-        alpha = alpha * t * t * (f32x8::splat(3.0) - f32x8::splat(2.0) * t);
+        let t = l.min(l.div(l.sub(raw, l.splat(alpha_min)), l.splat(SMOOTH_CUTOFF_BAND)), l.splat(1.0));
+        alpha = l.mul(l.mul(l.mul(alpha, t), t), l.sub(l.splat(3.0), l.mul(l.splat(2.0), t)));
     }
     AlphaLanes { alpha, falloff, contributes }
 }
@@ -76,9 +83,10 @@ struct TileState {
     trans: [f32; STATE_LEN],
     rgb: [[f32; STATE_LEN]; 3],
     depth: [f32; STATE_LEN],
-    last: [i32; STATE_LEN],
-    /// All ones in pixels that stopped blending.
-    done: [u32; STATE_LEN],
+    /// One past the list position of the last splat blended, as bits (only ever selected).
+    last: [f32; STATE_LEN],
+    /// All ones in pixels that stopped blending, as bits.
+    done: [f32; STATE_LEN],
 }
 
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
@@ -90,30 +98,44 @@ impl TileState {
             trans: [1.0; STATE_LEN],
             rgb: [[0.0; STATE_LEN]; 3],
             depth: [0.0; STATE_LEN],
-            last: [0; STATE_LEN],
-            done: [0; STATE_LEN],
+            last: [0.0; STATE_LEN],
+            done: [0.0; STATE_LEN],
         }
     }
 }
 
 /// The eight values of `a` from `o` on.
-#[inline]
-fn load(a: &[f32; STATE_LEN], o: usize) -> f32x8 {
-    f32x8::new(a[o..o + LANES].try_into().expect("eight values"))
+#[inline(always)]
+fn load<L: Lanes8>(l: L, a: &[f32; STATE_LEN], o: usize) -> L::V {
+    l.load_array(a[o..o + LANES].try_into().expect("eight values"))
 }
 
-#[inline]
-fn store(a: &mut [f32; STATE_LEN], o: usize, v: f32x8) {
-    a[o..o + LANES].copy_from_slice(&v.to_array());
+#[inline(always)]
+fn store<L: Lanes8>(l: L, a: &mut [f32; STATE_LEN], o: usize, v: L::V) {
+    a[o..o + LANES].copy_from_slice(&l.to_array(v));
 }
 
 /// Lane offsets plus the pixel-center half: lane l of a chunk starting at x is pixel x + l,
 /// centered at x + l + 0.5 (exact in f32 for any image size pwgs accepts).
 const LANE_CENTERS: [f32; LANES] = [0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5];
 
-/// [`super::blend::blend_band`], vectorized.
-pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, mut band: Band) {
-    let lane_index = i32x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
+/// [`super::blend::blend_band`], vectorized: with AVX2 where the CPU has it (unless `portable`
+/// asks for `wide`'s vectors), else with `wide`'s.
+pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, band: Band, portable: bool) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx2) = Avx2::detect().filter(|_| !portable) {
+        return avx2.0.vectorize(
+            #[inline(always)]
+            || blend_band_in(avx2, ty, bins, splats, options, band),
+        );
+    }
+    blend_band_in(Portable, ty, bins, splats, options, band)
+}
+
+#[inline(always)]
+fn blend_band_in<L: Lanes8>(l: L, ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, mut band: Band) {
+    let lane_index = l.load_array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
+    let all = l.splat(f32::from_bits(u32::MAX));
     for tx in 0..bins.tiles_x {
         let t = (ty * bins.tiles_x + tx) as usize;
         let [x0, x1, y0, y1] = bins.tile_rect(t);
@@ -128,47 +150,45 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
             if xa >= xb {
                 continue;
             }
-            let contributor = i32x8::splat(k as i32 + 1);
+            let contributor = l.splat(f32::from_bits(k as u32 + 1));
             // At most two chunks a row (a tile row is 16 pixels): their offsets from the
             // splat's center and the lanes inside its box, the same on every row.
             let chunks = ((xb - xa) as usize).div_ceil(LANES);
-            let dx = [0, 1].map(|c| chunk_dx(&s, xa + (c * LANES) as u32));
-            let inside = [0, 1].map(|c| {
-                let lanes = lane_index + i32x8::splat((c * LANES) as i32);
-                bytemuck::cast::<i32x8, u32x8>(lanes.simd_lt(i32x8::splat((xb - xa) as i32)))
-            });
+            let dx = [chunk_dx(l, &s, xa), chunk_dx(l, &s, xa + LANES as u32)];
+            let width = l.splat((xb - xa) as f32);
+            let inside = [l.lt(lane_index, width), l.lt(l.add(lane_index, l.splat(LANES as f32)), width)];
             for py in by0.max(y0)..by1.min(y1) {
                 let dy = s.mean[1] - (py as f32 + 0.5);
                 let row = (py - y0) as usize * TILE_SIZE as usize + (xa - x0) as usize;
                 for c in 0..chunks {
                     let o = row + c * LANES;
-                    let done = u32x8::new(state.done[o..o + LANES].try_into().expect("eight values"));
-                    let active: f32x8 = bytemuck::cast(inside[c] & !done);
-                    if !active.any() {
+                    let done = load(l, &state.done, o);
+                    let active = l.and_not(inside[c], done);
+                    if l.bitmask(active) == 0 {
                         continue;
                     }
-                    let AlphaLanes { alpha, contributes, .. } = splat_alpha8(&s, dx[c], dy, options);
-                    let valid = active & contributes;
-                    let trans = load(&state.trans, o);
-                    let next = trans * (f32x8::splat(1.0) - alpha);
-                    let stop = valid & next.simd_le(f32x8::splat(options.transmittance_min));
-                    if stop.any() {
-                        let now_done = done | bytemuck::cast::<f32x8, u32x8>(stop);
-                        state.done[o..o + LANES].copy_from_slice(&now_done.to_array());
-                        remaining -= stop.to_bitmask().count_ones() as usize;
+                    let AlphaLanes { alpha, contributes, .. } = splat_alpha8(l, &s, dx[c], dy, options);
+                    let valid = l.and(active, contributes);
+                    let trans = load(l, &state.trans, o);
+                    let next = l.mul(trans, l.sub(l.splat(1.0), alpha));
+                    let stop = l.and(valid, l.le(next, l.splat(options.transmittance_min)));
+                    let stopped = l.bitmask(stop);
+                    if stopped != 0 {
+                        store(l, &mut state.done, o, l.or(done, stop));
+                        remaining -= stopped.count_ones() as usize;
                     }
-                    let blend = valid & !stop;
-                    let weight = alpha * trans;
+                    let blend = l.and(valid, l.and_not(all, stop));
+                    let weight = l.mul(alpha, trans);
                     for ch in 0..3 {
-                        let v = load(&state.rgb[ch], o);
-                        store(&mut state.rgb[ch], o, blend.select(v + f32x8::splat(s.color[ch]) * weight, v));
+                        let v = load(l, &state.rgb[ch], o);
+                        let sum = l.add(v, l.mul(l.splat(s.color[ch]), weight));
+                        store(l, &mut state.rgb[ch], o, l.select(blend, sum, v));
                     }
-                    let d = load(&state.depth, o);
-                    store(&mut state.depth, o, blend.select(d + f32x8::splat(s.depth) * weight, d));
-                    store(&mut state.trans, o, blend.select(next, trans));
-                    let last = i32x8::new(state.last[o..o + LANES].try_into().expect("eight values"));
-                    let last = bytemuck::cast::<f32x8, i32x8>(blend).select(contributor, last);
-                    state.last[o..o + LANES].copy_from_slice(&last.to_array());
+                    let d = load(l, &state.depth, o);
+                    store(l, &mut state.depth, o, l.select(blend, l.add(d, l.mul(l.splat(s.depth), weight)), d));
+                    store(l, &mut state.trans, o, l.select(blend, next, trans));
+                    let last = load(l, &state.last, o);
+                    store(l, &mut state.last, o, l.select(blend, contributor, last));
                 }
             }
         }
@@ -191,7 +211,7 @@ fn write_tile(state: &TileState, [x0, x1, y0, y1]: [u32; 4], window: Window, opt
             band.transmittance[o] = trans;
             let covered = 1.0 - trans;
             band.depth[o] = if covered > 0.0 { state.depth[p] / covered } else { 0.0 };
-            band.last_contributor[o] = state.last[p] as u32;
+            band.last_contributor[o] = state.last[p].to_bits();
         }
     }
 }

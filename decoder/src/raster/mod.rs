@@ -10,6 +10,7 @@
 
 pub mod blend;
 pub mod blend_simd;
+pub mod lanes;
 pub mod project;
 pub mod sh;
 pub mod tiles;
@@ -40,8 +41,12 @@ pub enum Cutoff {
 pub enum BlendPath {
     /// One pixel at a time: the reference.
     Scalar,
-    /// Eight pixels of a tile row at a time ([`blend_simd`]).
+    /// Eight pixels of a tile row at a time ([`blend_simd`]), in AVX2 registers where the CPU
+    /// has them.
     Vectorized,
+    /// [`BlendPath::Vectorized`] with `wide`'s portable vectors whatever the CPU (what other
+    /// CPUs run; tests and benchmarks compare it with the others).
+    Portable,
 }
 
 /// Rendering settings; the defaults are those of 3DGS and gsplat.
@@ -175,7 +180,8 @@ pub fn blend_bins(splats: &[Splat], bins: &TileBins, options: &RenderOptions) ->
             let band = blend::Band { color, transmittance, depth, last_contributor };
             match options.blend {
                 BlendPath::Scalar => blend::blend_band(ty as u32, bins, splats, options, band),
-                BlendPath::Vectorized => blend_simd::blend_band(ty as u32, bins, splats, options, band),
+                BlendPath::Vectorized => blend_simd::blend_band(ty as u32, bins, splats, options, band, false),
+                BlendPath::Portable => blend_simd::blend_band(ty as u32, bins, splats, options, band, true),
             }
         });
     Blended { color: RgbImage { width, height, data: color }, transmittance, depth, last_contributor }

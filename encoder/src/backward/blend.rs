@@ -108,7 +108,8 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
     }
     slices.into_par_iter().enumerate().for_each(|(t, grads)| match options.blend {
         BlendPath::Scalar => tile_backward(t, rendered, options, v_color, grads),
-        BlendPath::Vectorized => super::blend_simd::tile_backward(t, rendered, options, v_color, grads),
+        BlendPath::Vectorized => super::blend_simd::tile_backward(t, rendered, options, v_color, grads, false),
+        BlendPath::Portable => super::blend_simd::tile_backward(t, rendered, options, v_color, grads, true),
     });
     let mut totals = vec![SplatGrad::default(); rendered.splats.len()];
     for (entry, grad) in bins.entries.iter().zip(&per_entry) {
