@@ -263,6 +263,22 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     assert_eq!(reported("weight_step_log2"), i64::from(content.mlps[0].weight_exponent));
     assert_eq!(reported("context_step_log2"), i64::from(context.mlp.weight_exponent));
 
+    // --target-bytes cuts the same run's stream to size by dropping anchors.
+    let target = (bytes.len() * 9 / 10).to_string();
+    let (cut_path, report3) = (dir("cut.pwb"), dir("r3.json"));
+    let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
+    args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "-o", &cut_path, "--report", &report3]);
+    args.extend(["--context-planes", "4,6", "--target-bytes", &target]);
+    let out = pwenc(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let cut = std::fs::read(&cut_path).unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(&report3).unwrap()).unwrap();
+    assert!(cut.len() <= bytes.len() * 9 / 10, "{} bytes against a target of {target}", cut.len());
+    let dropped = report["anchors_dropped_to_fit"].as_u64().unwrap() as usize;
+    assert!(dropped > 0);
+    assert_eq!(report["stream_anchors"].as_u64().unwrap() as usize + dropped, content.len());
+    assert_eq!(stream::decode(&cut).unwrap().header.gaussian_count as usize, content.len() - dropped);
+
     // --export-ply writes standard Gaussians of SH degree 3; --init-ply is refused before any
     // training, and nothing is written.
     let ply = dir("x.ply");
