@@ -10,7 +10,7 @@ use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::stream::{self, Decoded};
 
 use crate::rotation_frame::canonical_frame;
-use crate::size_fit::{Fit, largest_fitting};
+use crate::size_fit::{Fit, most_important_fitting};
 
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
 /// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
@@ -132,7 +132,7 @@ pub fn compress(
 }
 
 /// [`compress`] into at most `target` bytes: every visible Gaussian if the stream fits, else
-/// the most important ones (see [`importance`]), as many as fit ([`largest_fitting`]): the
+/// the most important ones (see [`importance`]), as many as fit ([`most_important_fitting`]): the
 /// result lands within a few Gaussians' bytes of the target, which makes equal-size
 /// comparisons one option away.
 pub fn compress_to_size(
@@ -145,25 +145,14 @@ pub fn compress_to_size(
     check_finite(g)?;
     let visible = visible_after_quantization(g, settings.opacity_step);
     let invisible = g.len() - visible.len();
-    // Ranked only when the whole stream does not fit.
-    let ranked = std::cell::OnceCell::new();
-    let most_important = |k: usize| {
-        let keep = if k == visible.len() {
-            visible.clone()
-        } else {
-            let ranked = ranked.get_or_init(|| {
-                let mut ranked = visible.clone();
-                ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
-                ranked
-            });
-            let mut keep = ranked[..k].to_vec();
-            keep.sort_unstable();
-            keep
-        };
-        write_selected(g, &keep, settings, context, wrapper)
+    let rank = || {
+        let mut ranked = visible.clone();
+        ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
+        ranked
     };
-    let (kept, bytes) = match largest_fitting(visible.len(), target, most_important)? {
-        Fit::Fits { kept, bytes } => (kept, bytes),
+    let write = |keep: Option<&[usize]>| write_selected(g, keep.unwrap_or(&visible), settings, context, wrapper);
+    let (kept, bytes) = match most_important_fitting(visible.len(), target, rank, write)? {
+        Fit::Fits { kept, bytes } => (kept.map_or(visible.len(), |k| k.len()), bytes),
         Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
     };
     let decoded = stream::decode(&bytes)?;

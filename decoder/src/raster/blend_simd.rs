@@ -135,7 +135,6 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
 #[inline(always)]
 fn blend_band_in<L: Lanes8>(l: L, ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, mut band: Band) {
     let lane_index = l.load_array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]);
-    let all = l.splat(f32::from_bits(u32::MAX));
     for tx in 0..bins.tiles_x {
         let t = (ty * bins.tiles_x + tx) as usize;
         let [x0, x1, y0, y1] = bins.tile_rect(t);
@@ -177,7 +176,7 @@ fn blend_band_in<L: Lanes8>(l: L, ty: u32, bins: &TileBins, splats: &[Splat], op
                         store(l, &mut state.done, o, l.or(done, stop));
                         remaining -= stopped.count_ones() as usize;
                     }
-                    let blend = l.and(valid, l.and_not(all, stop));
+                    let blend = l.and_not(valid, stop);
                     let weight = l.mul(alpha, trans);
                     for ch in 0..3 {
                         let v = load(l, &state.rgb[ch], o);

@@ -1,8 +1,9 @@
-//! Eight f32 lanes for the vectorized blend, two ways: `wide`'s portable vectors (what a
-//! plain x86-64 build compiles them to: pairs of SSE registers) and, where the CPU has them,
-//! AVX2 registers through `pulp`'s V3 token, found at run time. The blend is written once
-//! over [`Lanes8`]; each operation is one IEEE operation per lane in both, so the two give
-//! the same bits (the tests compare both with the scalar path).
+//! Eight f32 lanes ([`Lanes8`], the forward blend and alpha) and four f64 lanes ([`Lanes4d`],
+//! the backward blend), two ways: `wide`'s portable vectors (what a plain x86-64 build
+//! compiles them to: pairs of SSE registers) and, where the CPU has them, AVX2 registers
+//! through `pulp`'s V3 token, found at run time. The blends are written once over these
+//! traits; each operation is one IEEE operation per lane in both, so the two give the same
+//! bits (the tests compare both with the scalar path).
 //!
 //! Masks are vectors too: all ones in the lanes where a comparison holds.
 //!

@@ -16,7 +16,7 @@ use pwgs_decoder::raster::project::ProjectionSettings;
 use pwgs_decoder::raster::project_visible;
 use pwgs_decoder::stream::{self, anchor::QuantizedAnchors, header::Header, wrap::QuantizedSynthesis};
 
-use crate::size_fit::{Fit, largest_fitting};
+use crate::size_fit::{Fit, most_important_fitting};
 
 /// `content`'s stream (with `wrapper`) in at most `target` bytes: every anchor if it fits, else
 /// the most important ones over `cameras` (see the module's doc), as many as fit. Returns the
@@ -29,29 +29,22 @@ pub fn fit_anchors(
     cameras: &[Camera],
 ) -> Result<(QuantizedAnchors, Vec<u8>, usize)> {
     let n = content.len();
-    let ranked = std::cell::OnceCell::new();
-    let subset = |k: usize| {
-        if k == n {
-            return content.clone();
-        }
-        let ranked: &Vec<usize> = ranked.get_or_init(|| {
-            let importance = anchor_importance(&content.dequantize(), cameras);
-            let mut ranked: Vec<usize> = (0..n).collect();
-            ranked.sort_by(|&a, &b| importance[b].total_cmp(&importance[a]).then(a.cmp(&b)));
-            ranked
-        });
-        let mut keep = ranked[..k].to_vec();
-        keep.sort_unstable();
-        keep_anchors(&content, &keep)
+    let rank = || {
+        let importance = anchor_importance(&content.dequantize(), cameras);
+        let mut ranked: Vec<usize> = (0..n).collect();
+        ranked.sort_by(|&a, &b| importance[b].total_cmp(&importance[a]).then(a.cmp(&b)));
+        ranked
     };
-    let write = |k: usize| {
-        let kept = subset(k);
-        let header =
-            Header { gaussian_count: u32::try_from(k).context("too many anchors for a stream")?, ..header.clone() };
-        stream::encode(&header, &kept, wrapper).context("cannot write the anchor stream")
+    let write = |keep: Option<&[usize]>| {
+        let subset = keep.map(|keep| keep_anchors(&content, keep));
+        let kept = subset.as_ref().unwrap_or(&content);
+        let count = u32::try_from(kept.len()).context("too many anchors for a stream")?;
+        let header = Header { gaussian_count: count, ..header.clone() };
+        stream::encode(&header, kept, wrapper).context("cannot write the anchor stream")
     };
-    match largest_fitting(n, target, write)? {
-        Fit::Fits { kept, bytes } => Ok((subset(kept), bytes, n - kept)),
+    match most_important_fitting(n, target, rank, write)? {
+        Fit::Fits { kept: None, bytes } => Ok((content, bytes, 0)),
+        Fit::Fits { kept: Some(keep), bytes } => Ok((keep_anchors(&content, &keep), bytes, n - keep.len())),
         Fit::TooSmall { minimum } => {
             bail!("a stream of at most {target} bytes is impossible: without any anchor it takes {minimum}")
         }

@@ -278,19 +278,13 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         }
         None => None,
     };
-    let (content, bytes, dropped) = match job.target_bytes {
-        Some(target) => {
-            let target = usize::try_from(target).unwrap_or(usize::MAX);
-            let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
-            let fitted = fit_anchors(content, &header, wrapper.as_ref(), target, &cameras)?;
-            println!("target {target} bytes: {} least important anchors dropped to fit", fitted.2);
-            fitted
-        }
-        None => {
-            let bytes = stream::encode(&header, &content, wrapper.as_ref())?;
-            (content, bytes, 0)
-        }
-    };
+    // Without a target every anchor fits: the stream is written once, nothing is ranked.
+    let target = job.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
+    let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
+    let (content, bytes, dropped) = fit_anchors(content, &header, wrapper.as_ref(), target, &cameras)?;
+    if let Some(target) = job.target_bytes {
+        println!("target {target} bytes: {dropped} least important anchors dropped to fit");
+    }
     let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
     if let Some(path) = &job.output {
         pwgs_decoder::atomic_file::write_atomically(path, &bytes)
@@ -298,7 +292,6 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         println!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
     }
     if let (Some(path), Base::Anchors(model)) = (&job.export_ply, &scene.base) {
-        let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
         let export = export_gaussians(model, &cameras);
         // Checked on the test views (the fit saw only the training views).
         let test: Vec<Camera> = data.test.iter().map(|v| v.camera).collect();
