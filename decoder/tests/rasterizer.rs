@@ -230,10 +230,17 @@ fn ten_thousand_gaussians_in_one_tile() {
     // The blend loops read a tile's splats through block copies: every position once, in order.
     let list = out.bins.tile(0);
     let expected = |k: usize| (k, out.splats[list[k] as usize]);
-    let front: Vec<_> = out.bins.splats(0, &out.splats, ListOrder::FrontToBack).collect();
+    let walk = |order| {
+        let (mut list, mut all) = (out.bins.splats(0, &out.splats, order), Vec::new());
+        while let Some(block) = list.next_block() {
+            all.extend_from_slice(block);
+        }
+        all
+    };
+    let front = walk(ListOrder::FrontToBack);
     assert_eq!(front, (0..list.len()).map(expected).collect::<Vec<_>>());
     for end in [0, 1, 31, 32, 33, 9_999, 10_000, 20_000] {
-        let back: Vec<_> = out.bins.splats(0, &out.splats, ListOrder::BackToFront { end }).collect();
+        let back = walk(ListOrder::BackToFront { end });
         assert_eq!(back, (0..end.min(list.len())).rev().map(expected).collect::<Vec<_>>(), "end {end}");
     }
 }
@@ -321,23 +328,50 @@ fn output_is_identical_for_any_thread_count() {
     assert_eq!(one.splats, many.splats);
 }
 
-/// The vectorized blend (AVX2 and portable) gives the scalar reference's bits: colors,
-/// transmittance, depth and last contributors, on edge tiles (sizes off the 16-pixel grid),
-/// windows, dense tiles that saturate, and both cutoffs.
+/// The vectorized blend (AVX2 and portable, which give the same bits) against the scalar
+/// reference, on edge tiles (sizes off the 16-pixel grid), windows, dense tiles that saturate,
+/// and both cutoffs. The vector falloff is within 2.2e-7 (relative) of its exact value and
+/// the scalar one within 2 ulps, so each alpha differs by a few 1e-7 and each pixel's sum by
+/// about that times the number of splats blended: within 1e-5 wherever both paths took the
+/// same decisions. A splat whose alpha is within that of alpha_min, or a pixel whose
+/// transmittance is within it of transmittance_min, may be decided the other way: such pixels
+/// are rare and differ by at most one splat's contribution, within the render tolerance of
+/// SPEC.md section 8 (2/255).
 #[test]
-fn vectorized_blending_matches_the_scalar_path_bit_for_bit() {
+fn vectorized_blending_matches_the_scalar_path() {
     use pwgs_decoder::raster::{BlendPath, Cutoff};
-    let check = |g: &Gaussians, cam: &pwgs_decoder::camera::Camera, window: Window, cutoff: Cutoff, what: &str| {
+    let (mut pixels, mut decided_otherwise) = (0usize, 0usize);
+    let mut check = |g: &Gaussians, cam: &pwgs_decoder::camera::Camera, window: Window, cutoff: Cutoff, what: &str| {
         let options = RenderOptions { background: [0.25, 0.5, 0.75], cutoff, ..Default::default() };
-        let scalar = rasterize_window(g, cam, window, &RenderOptions { blend: BlendPath::Scalar, ..options });
-        // Both vector paths: AVX2 where this CPU has it, and `wide`'s portable vectors.
-        for path in [BlendPath::Vectorized, BlendPath::Portable] {
-            let vector = rasterize_window(g, cam, window, &RenderOptions { blend: path, ..options });
-            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(bits(&vector.color.data), bits(&scalar.color.data), "{what} {path:?}: colors");
-            assert_eq!(bits(&vector.transmittance), bits(&scalar.transmittance), "{what} {path:?}: transmittance");
-            assert_eq!(bits(&vector.depth), bits(&scalar.depth), "{what} {path:?}: depth");
-            assert_eq!(vector.last_contributor, scalar.last_contributor, "{what} {path:?}: last contributors");
+        let render = |blend| rasterize_window(g, cam, window, &RenderOptions { blend, ..options });
+        let (scalar, vector, portable) =
+            (render(BlendPath::Scalar), render(BlendPath::Vectorized), render(BlendPath::Portable));
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        // AVX2 (where this CPU has it) and `wide`'s portable vectors: the same operations.
+        assert_eq!(bits(&vector.color.data), bits(&portable.color.data), "{what}: AVX2 and portable colors");
+        assert_eq!(bits(&vector.transmittance), bits(&portable.transmittance), "{what}: transmittance");
+        assert_eq!(bits(&vector.depth), bits(&portable.depth), "{what}: depth");
+        assert_eq!(vector.last_contributor, portable.last_contributor, "{what}: last contributors");
+        for p in 0..scalar.transmittance.len() {
+            pixels += 1;
+            let (a, b) = (&scalar.color.data[p * 3..p * 3 + 3], &vector.color.data[p * 3..p * 3 + 3]);
+            let worst = a.iter().zip(b).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+            let worst = worst.max((scalar.transmittance[p] - vector.transmittance[p]).abs());
+            if scalar.last_contributor[p] == vector.last_contributor[p] && worst <= 1e-5 {
+                let depth = (scalar.depth[p] - vector.depth[p]).abs();
+                // Depth is a sum divided by the coverage 1 - T, which loses digits where the
+                // coverage is small: its bound grows as 1 / (1 - T).
+                let bound = scalar.depth[p].abs() * (1e-5 + 1e-6 / (1.0 - scalar.transmittance[p]));
+                assert!(depth == 0.0 || depth <= bound, "{what} pixel {p}: depth off by {depth}, more than {bound}");
+            } else {
+                decided_otherwise += 1;
+                assert!(
+                    worst <= 2.0 / 255.0,
+                    "{what} pixel {p}: off by {worst} (last contributor {} against {})",
+                    vector.last_contributor[p],
+                    scalar.last_contributor[p]
+                );
+            }
         }
         assert!(scalar.transmittance.iter().any(|&t| t < 0.5), "{what}: the scene covers the view");
     };
@@ -350,4 +384,5 @@ fn vectorized_blending_matches_the_scalar_path_bit_for_bit() {
         let window = Window { x0: 3, y0: 2, width: w - 5, height: h - 3 };
         check(&g, &cam, window, Cutoff::Hard, &format!("seed {seed} window"));
     }
+    assert!(decided_otherwise * 1000 <= pixels, "{decided_otherwise} of {pixels} pixels decided otherwise");
 }

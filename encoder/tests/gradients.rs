@@ -157,8 +157,9 @@ fn near_camera_gaussians() {
     check(&Case { name: "near", gaussians, camera: axis_camera(36, 36, 30.0, 30.0, 18.0, 18.0), length });
 }
 
-/// The vectorized backward walk agrees with the scalar reference up to the rounding of its
-/// different summation order, on both cutoffs, edge tiles and saturated pixels.
+/// The vectorized backward walk agrees with the scalar reference up to its cheaper falloff's
+/// error and the rounding of its different summation order, on both cutoffs, edge tiles and
+/// saturated pixels.
 #[test]
 fn vectorized_backward_matches_the_scalar_walk() {
     use pwgs_decoder::raster::BlendPath;
@@ -169,11 +170,14 @@ fn vectorized_backward_matches_the_scalar_walk() {
         let g = random_gaussians(&mut SplitMix64(seed), n, 2, [-3.5, -1.5]);
         let cam = axis_camera(w, h, 0.8 * w as f32, 0.8 * w as f32, w as f32 / 2.0, h as f32 / 2.0);
         let options = RenderOptions { background: [0.3, 0.6, 0.1], cutoff, ..Default::default() };
-        let rendered = rasterize(&g, &cam, &options);
-        assert!(rendered.transmittance.iter().any(|&t| t < 0.2), "seed {seed}: the scene covers the view");
+        let rendered = |blend| rasterize(&g, &cam, &RenderOptions { blend, ..options });
+        let scalar = rendered(BlendPath::Scalar);
+        assert!(scalar.transmittance.iter().any(|&t| t < 0.2), "seed {seed}: the scene covers the view");
         let mut rng = SplitMix64(seed + 100);
-        let v_color: Vec<f32> = (0..rendered.color.data.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
-        let grads = |blend| blend_backward(&rendered, &RenderOptions { blend, ..options }, &v_color);
+        let v_color: Vec<f32> = (0..scalar.color.data.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        // Each path walks back through its own forward pass (the vector one's alphas differ
+        // from the scalar one's in the last bits: see the forward pass's test).
+        let grads = |blend| blend_backward(&rendered(blend), &RenderOptions { blend, ..options }, &v_color);
         let flat = |gs: &[pwgs_encoder::backward::blend::SplatGrad]| -> Vec<f64> {
             gs.iter().flat_map(|g| g.mean.into_iter().chain(g.conic).chain([g.opacity]).chain(g.color)).collect()
         };
@@ -184,10 +188,16 @@ fn vectorized_backward_matches_the_scalar_walk() {
         let (avx, portable) = (flat(&grads(BlendPath::Vectorized)), flat(&grads(BlendPath::Portable)));
         for b in [&avx, &portable] {
             let worst = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
-            // Per entry the sums are stored in f32: a different f64 order may round an
-            // entry's last f32 bit differently, so the bound is f32's precision at the largest
-            // value.
-            assert!(worst <= 1e-6 * scale, "seed {seed}: worst difference {worst} against scale {scale}");
+            // Per entry the sums are stored in f32 (6e-8 of the largest value) and the two
+            // paths' alphas differ by a few 1e-7, relative: 1e-6 of the largest gradient.
+            // Under the smooth cutoff alpha's slope near alpha_min is 1 / SMOOTH_CUTOFF_BAND
+            // (1,000) times raw alpha's, so there the alphas' difference is amplified by raw
+            // alpha / band, up to 10 for the splats in the band.
+            let bound = match cutoff {
+                Cutoff::Hard => 1e-6,
+                Cutoff::Smooth => 1e-5,
+            } * scale;
+            assert!(worst <= bound, "seed {seed}: worst difference {worst} against scale {scale}");
         }
         // The two vector paths do the same operations in the same order.
         assert_eq!(avx, portable, "seed {seed}: AVX2 and portable lanes differ");

@@ -69,34 +69,36 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
         let mut last = [0u32; TILE_PIXELS];
         let mut done = [false; TILE_PIXELS];
         let mut remaining = tw * (y1 - y0) as usize;
-        for (k, s) in bins.splats(t, splats, ListOrder::FrontToBack) {
-            if remaining == 0 {
-                break;
-            }
-            let s = &s;
-            let [bx0, bx1, by0, by1] = s.bbox;
-            for py in by0.max(y0)..by1.min(y1) {
-                let dy = s.mean[1] - (py as f32 + 0.5);
-                for px in bx0.max(x0)..bx1.min(x1) {
-                    let p = (py - y0) as usize * tw + (px - x0) as usize;
-                    if done[p] {
-                        continue;
+        let mut list = bins.splats(t, splats, ListOrder::FrontToBack);
+        'tile: while let Some(block) = list.next_block() {
+            for &(k, ref s) in block {
+                if remaining == 0 {
+                    break 'tile;
+                }
+                let [bx0, bx1, by0, by1] = s.bbox;
+                for py in by0.max(y0)..by1.min(y1) {
+                    let dy = s.mean[1] - (py as f32 + 0.5);
+                    for px in bx0.max(x0)..bx1.min(x1) {
+                        let p = (py - y0) as usize * tw + (px - x0) as usize;
+                        if done[p] {
+                            continue;
+                        }
+                        let dx = s.mean[0] - (px as f32 + 0.5);
+                        let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
+                        let next = trans[p] * (1.0 - alpha);
+                        if next <= options.transmittance_min {
+                            done[p] = true;
+                            remaining -= 1;
+                            continue;
+                        }
+                        let weight = alpha * trans[p];
+                        for c in 0..3 {
+                            rgb[p][c] += s.color[c] * weight;
+                        }
+                        depth[p] += s.depth * weight;
+                        trans[p] = next;
+                        last[p] = k as u32 + 1;
                     }
-                    let dx = s.mean[0] - (px as f32 + 0.5);
-                    let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
-                    let next = trans[p] * (1.0 - alpha);
-                    if next <= options.transmittance_min {
-                        done[p] = true;
-                        remaining -= 1;
-                        continue;
-                    }
-                    let weight = alpha * trans[p];
-                    for c in 0..3 {
-                        rgb[p][c] += s.color[c] * weight;
-                    }
-                    depth[p] += s.depth * weight;
-                    trans[p] = next;
-                    last[p] = k as u32 + 1;
                 }
             }
         }

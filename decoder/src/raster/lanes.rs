@@ -24,6 +24,8 @@ pub trait Lanes8: Copy {
     fn mul(self, a: Self::V, b: Self::V) -> Self::V;
     fn div(self, a: Self::V, b: Self::V) -> Self::V;
     fn min(self, a: Self::V, b: Self::V) -> Self::V;
+    /// The larger of each pair (neither may be NaN: the two implementations differ there).
+    fn max(self, a: Self::V, b: Self::V) -> Self::V;
     fn lt(self, a: Self::V, b: Self::V) -> Self::V;
     fn le(self, a: Self::V, b: Self::V) -> Self::V;
     fn gt(self, a: Self::V, b: Self::V) -> Self::V;
@@ -37,13 +39,19 @@ pub trait Lanes8: Copy {
     fn trunc_int(self, a: Self::V) -> Self::V;
     /// The lanes' bits added as u32s (wrapping).
     fn add_bits(self, a: Self::V, b: Self::V) -> Self::V;
+    /// The larger bits of each pair, as u32s.
+    fn max_bits(self, a: Self::V, b: Self::V) -> Self::V;
     /// Lane l's mask in bit l.
     fn bitmask(self, mask: Self::V) -> u32;
 }
 
 /// The operations the backward blend needs on four f64 lanes (masks as in [`Lanes8`]).
-pub trait Lanes4d: Copy {
+pub trait Lanes4d: Lanes8 {
     type D: Copy;
+    /// The eight lanes of `v` in f64 (exact): the first four and the last four.
+    fn widen(self, v: Self::V) -> [Self::D; 2];
+    /// The lanes' sum, as (a0 + a2) + (a1 + a3) (the order AVX's halves give cheaply).
+    fn sum_d(self, v: Self::D) -> f64;
     fn splat_d(self, x: f64) -> Self::D;
     fn load_array_d(self, a: [f64; 4]) -> Self::D;
     fn to_array_d(self, v: Self::D) -> [f64; 4];
@@ -58,6 +66,45 @@ pub trait Lanes4d: Copy {
     fn select_d(self, mask: Self::D, a: Self::D, b: Self::D) -> Self::D;
     /// Whether any lane of the mask is set.
     fn any_d(self, mask: Self::D) -> bool;
+}
+
+/// Asks the CPU to bring `value`'s cache lines (its first and last byte's) into its caches,
+/// for reads that are coming but would miss: x86-64's prefetch instruction (safe through
+/// `pulp`'s token), nothing elsewhere.
+#[inline(always)]
+pub fn prefetch<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(sse) = pulp::core_arch::x86::Sse::try_new() {
+        const T0: i32 = 3;
+        let first = (value as *const T).cast::<i8>();
+        sse._mm_prefetch::<T0>(first);
+        sse._mm_prefetch::<T0>(first.wrapping_add(size_of::<T>().saturating_sub(1)));
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
+}
+
+/// A computation written once over the lane traits (see [`run_kernel`]).
+pub trait LaneKernel {
+    type Output;
+    /// The computation on lanes `l`. Implementations are `#[inline(always)]`, and so is
+    /// everything they call that uses the lanes.
+    fn run<L: Lanes8 + Lanes4d>(self, l: L) -> Self::Output;
+}
+
+/// Runs `kernel` in AVX2 registers where the CPU has them (unless `portable` asks for `wide`'s
+/// vectors), else in `wide`'s. The kernel goes to `pulp` as a value whose call is
+/// `#[inline(always)]`, not as a closure: a closure reaches it through a `FnOnce` shim that
+/// LLVM may decline to inline once the kernel is large, and the kernel then runs without the
+/// AVX2 features, each lane operation a call (the backward blend became 20 times slower so).
+#[inline(always)]
+pub fn run_kernel<K: LaneKernel>(kernel: K, portable: bool) -> K::Output {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx2) = Avx2::detect().filter(|_| !portable) {
+        return avx2.0.vectorize(avx2::InAvx2(kernel, avx2));
+    }
+    let _ = portable;
+    kernel.run(Portable)
 }
 
 /// `wide`'s vectors: every target, whatever the build's features.
@@ -99,6 +146,10 @@ impl Lanes8 for Portable {
         a.min(b)
     }
     #[inline(always)]
+    fn max(self, a: f32x8, b: f32x8) -> f32x8 {
+        a.max(b)
+    }
+    #[inline(always)]
     fn lt(self, a: f32x8, b: f32x8) -> f32x8 {
         a.simd_lt(b)
     }
@@ -135,6 +186,10 @@ impl Lanes8 for Portable {
         bytemuck::cast(bytemuck::cast::<f32x8, u32x8>(a) + bytemuck::cast::<f32x8, u32x8>(b))
     }
     #[inline(always)]
+    fn max_bits(self, a: f32x8, b: f32x8) -> f32x8 {
+        bytemuck::cast(bytemuck::cast::<f32x8, u32x8>(a).max(bytemuck::cast::<f32x8, u32x8>(b)))
+    }
+    #[inline(always)]
     fn bitmask(self, mask: f32x8) -> u32 {
         mask.to_bitmask()
     }
@@ -142,6 +197,16 @@ impl Lanes8 for Portable {
 
 impl Lanes4d for Portable {
     type D = f64x4;
+    #[inline(always)]
+    fn widen(self, v: f32x8) -> [f64x4; 2] {
+        let a = v.to_array().map(f64::from);
+        [f64x4::new([a[0], a[1], a[2], a[3]]), f64x4::new([a[4], a[5], a[6], a[7]])]
+    }
+    #[inline(always)]
+    fn sum_d(self, v: f64x4) -> f64 {
+        let a = v.to_array();
+        (a[0] + a[2]) + (a[1] + a[3])
+    }
     #[inline(always)]
     fn splat_d(self, x: f64) -> f64x4 {
         f64x4::splat(x)
@@ -204,7 +269,19 @@ mod avx2 {
     use pulp::x86::V3;
     use pulp::{f32x8, f64x4, m32x8, m64x4};
 
-    use super::{Lanes4d, Lanes8};
+    use super::{LaneKernel, Lanes4d, Lanes8};
+
+    /// A kernel and the AVX2 lanes it runs on, as `pulp` calls it (inside a function compiled
+    /// with the features).
+    pub(super) struct InAvx2<K>(pub K, pub Avx2);
+
+    impl<K: LaneKernel> pulp::NullaryFnOnce for InAvx2<K> {
+        type Output = K::Output;
+        #[inline(always)]
+        fn call(self) -> K::Output {
+            self.0.run(self.1)
+        }
+    }
 
     /// AVX2 registers, on a CPU that has them (x86-64-v3: AVX2, FMA, BMI; FMA is not used).
     #[derive(Debug, Clone, Copy)]
@@ -262,6 +339,10 @@ mod avx2 {
             self.0.min_f32x8(a, b)
         }
         #[inline(always)]
+        fn max(self, a: f32x8, b: f32x8) -> f32x8 {
+            self.0.max_f32x8(a, b)
+        }
+        #[inline(always)]
         fn lt(self, a: f32x8, b: f32x8) -> f32x8 {
             mask(self.0.cmp_lt_f32x8(a, b))
         }
@@ -299,6 +380,10 @@ mod avx2 {
             bytemuck::cast(self.0.wrapping_add_u32x8(bytemuck::cast(a), bytemuck::cast(b)))
         }
         #[inline(always)]
+        fn max_bits(self, a: f32x8, b: f32x8) -> f32x8 {
+            bytemuck::cast(self.0.avx2._mm256_max_epu32(bytemuck::cast(a), bytemuck::cast(b)))
+        }
+        #[inline(always)]
         fn bitmask(self, m: f32x8) -> u32 {
             self.0.avx._mm256_movemask_ps(bytemuck::cast(m)) as u32
         }
@@ -311,6 +396,22 @@ mod avx2 {
 
     impl Lanes4d for Avx2 {
         type D = f64x4;
+        #[inline(always)]
+        fn widen(self, v: f32x8) -> [f64x4; 2] {
+            let avx = self.0.avx;
+            let v = bytemuck::cast(v);
+            [
+                bytemuck::cast(avx._mm256_cvtps_pd(avx._mm256_castps256_ps128(v))),
+                bytemuck::cast(avx._mm256_cvtps_pd(avx._mm256_extractf128_ps::<1>(v))),
+            ]
+        }
+        #[inline(always)]
+        fn sum_d(self, v: f64x4) -> f64 {
+            let (avx, sse2) = (self.0.avx, self.0.sse2);
+            let v = bytemuck::cast(v);
+            let halves = sse2._mm_add_pd(avx._mm256_castpd256_pd128(v), avx._mm256_extractf128_pd::<1>(v));
+            sse2._mm_cvtsd_f64(sse2._mm_add_sd(halves, sse2._mm_unpackhi_pd(halves, halves)))
+        }
         #[inline(always)]
         fn splat_d(self, x: f64) -> f64x4 {
             self.0.splat_f64x4(x)

@@ -8,6 +8,7 @@
 //! so the result does not depend on the number of threads.
 
 use pwgs_decoder::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
+use pwgs_decoder::raster::lanes::prefetch;
 use pwgs_decoder::raster::project::Splat;
 use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{BlendPath, Cutoff, RenderOptions, Rendered};
@@ -86,6 +87,9 @@ struct PixelState {
     last: usize,
 }
 
+/// How many entries ahead [`blend_backward`]'s sum over tiles prefetches.
+const TOTALS_AHEAD: usize = 16;
+
 /// Gradients of every visible splat (indexed like `rendered.splats`) given dL/d(color) per
 /// pixel (`v_color`, interleaved RGB like the image).
 ///
@@ -112,7 +116,11 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
         BlendPath::Portable => super::blend_simd::tile_backward(t, rendered, options, v_color, grads, true),
     });
     let mut totals = vec![SplatGrad::default(); rendered.splats.len()];
-    for (entry, grad) in bins.entries.iter().zip(&per_entry) {
+    for (j, (entry, grad)) in bins.entries.iter().zip(&per_entry).enumerate() {
+        // The entries index the totals at random: ask for the line a few entries ahead.
+        if let Some(&ahead) = bins.entries.get(j + TOTALS_AHEAD) {
+            prefetch(&totals[ahead as usize]);
+        }
         totals[*entry as usize].add(&grad.widen());
     }
     totals
@@ -141,44 +149,46 @@ fn tile_backward(t: usize, rendered: &Rendered, options: &RenderOptions, v_color
         }
     }
     let deepest = pixels.iter().map(|p| p.last).max().unwrap_or(0);
-    for (k, s) in bins.splats(t, &rendered.splats, ListOrder::BackToFront { end: deepest }) {
-        let s = &s;
-        let [bx0, bx1, by0, by1] = s.bbox;
-        let [a, b, c] = s.conic.map(f64::from);
-        let opacity = s.opacity as f64;
-        let color = s.color.map(f64::from);
-        let mut g = SplatGrad::default();
-        for py in by0.max(y0)..by1.min(y1) {
-            for px in bx0.max(x0)..bx1.min(x1) {
-                let state = &mut pixels[(py - y0) as usize * tw + (px - x0) as usize];
-                if k >= state.last {
-                    continue;
+    let mut list = bins.splats(t, &rendered.splats, ListOrder::BackToFront { end: deepest });
+    while let Some(block) = list.next_block() {
+        for &(k, ref s) in block {
+            let [bx0, bx1, by0, by1] = s.bbox;
+            let [a, b, c] = s.conic.map(f64::from);
+            let opacity = s.opacity as f64;
+            let color = s.color.map(f64::from);
+            let mut g = SplatGrad::default();
+            for py in by0.max(y0)..by1.min(y1) {
+                for px in bx0.max(x0)..bx1.min(x1) {
+                    let state = &mut pixels[(py - y0) as usize * tw + (px - x0) as usize];
+                    if k >= state.last {
+                        continue;
+                    }
+                    let dx = s.mean[0] - (px as f32 + 0.5);
+                    let dy = s.mean[1] - (py as f32 + 0.5);
+                    let Some(sample) = splat_alpha(s, dx, dy, options) else { continue };
+                    let alpha = sample.alpha as f64;
+                    let falloff = sample.falloff as f64;
+                    let ra = 1.0 / (1.0 - alpha);
+                    state.transmittance *= ra;
+                    let trans = state.transmittance;
+                    let mut v_alpha = -state.t_final * ra * state.bg_term;
+                    for ch in 0..3 {
+                        g.color[ch] += alpha * trans * state.v_color[ch];
+                        v_alpha += (color[ch] * trans - state.behind[ch] * ra) * state.v_color[ch];
+                        state.behind[ch] += color[ch] * alpha * trans;
+                    }
+                    let v_raw = v_alpha * alpha_slope(s, falloff, options);
+                    g.opacity += falloff * v_raw;
+                    let v_sigma = -opacity * falloff * v_raw;
+                    let (dx, dy) = (dx as f64, dy as f64);
+                    g.conic[0] += 0.5 * dx * dx * v_sigma;
+                    g.conic[1] += dx * dy * v_sigma;
+                    g.conic[2] += 0.5 * dy * dy * v_sigma;
+                    g.mean[0] += (a * dx + b * dy) * v_sigma;
+                    g.mean[1] += (b * dx + c * dy) * v_sigma;
                 }
-                let dx = s.mean[0] - (px as f32 + 0.5);
-                let dy = s.mean[1] - (py as f32 + 0.5);
-                let Some(sample) = splat_alpha(s, dx, dy, options) else { continue };
-                let alpha = sample.alpha as f64;
-                let falloff = sample.falloff as f64;
-                let ra = 1.0 / (1.0 - alpha);
-                state.transmittance *= ra;
-                let trans = state.transmittance;
-                let mut v_alpha = -state.t_final * ra * state.bg_term;
-                for ch in 0..3 {
-                    g.color[ch] += alpha * trans * state.v_color[ch];
-                    v_alpha += (color[ch] * trans - state.behind[ch] * ra) * state.v_color[ch];
-                    state.behind[ch] += color[ch] * alpha * trans;
-                }
-                let v_raw = v_alpha * alpha_slope(s, falloff, options);
-                g.opacity += falloff * v_raw;
-                let v_sigma = -opacity * falloff * v_raw;
-                let (dx, dy) = (dx as f64, dy as f64);
-                g.conic[0] += 0.5 * dx * dx * v_sigma;
-                g.conic[1] += dx * dy * v_sigma;
-                g.conic[2] += 0.5 * dy * dy * v_sigma;
-                g.mean[0] += (a * dx + b * dy) * v_sigma;
-                g.mean[1] += (b * dx + c * dy) * v_sigma;
             }
+            grads[k] = EntryGrad::from(&g);
         }
-        grads[k] = EntryGrad::from(&g);
     }
 }
