@@ -108,25 +108,28 @@ impl TileSplats<'_> {
     pub fn next_block(&mut self) -> Option<&[(usize, Splat)]> {
         self.block.clear();
         let (list, splats) = (self.list, self.splats);
+        let block = self.block_from(self.next);
         if self.reverse {
-            let from = self.next.saturating_sub(GATHER_BLOCK).max(self.end);
-            self.block.extend((from..self.next).rev().map(|k| (k, splats[list[k] as usize])));
-            self.next = from;
+            self.next = block.start;
+            self.block.extend(block.rev().map(|k| (k, splats[list[k] as usize])));
         } else {
-            let to = (self.next + GATHER_BLOCK).min(self.end);
-            self.block.extend((self.next..to).map(|k| (k, splats[list[k] as usize])));
-            self.next = to;
+            self.next = block.end;
+            self.block.extend(block.map(|k| (k, splats[list[k] as usize])));
         }
         // The next block's splats, requested now: they arrive while this block is blended.
-        let ahead = if self.reverse {
-            self.next.saturating_sub(GATHER_BLOCK).max(self.end)..self.next
-        } else {
-            self.next..(self.next + GATHER_BLOCK).min(self.end)
-        };
-        for k in ahead {
+        for k in self.block_from(self.next) {
             prefetch(&splats[list[k] as usize]);
         }
         (!self.block.is_empty()).then_some(self.block.as_slice())
+    }
+
+    /// The list positions of the block that `next` starts, in ascending order.
+    fn block_from(&self, next: usize) -> std::ops::Range<usize> {
+        if self.reverse {
+            next.saturating_sub(GATHER_BLOCK).max(self.end)..next
+        } else {
+            next..(next + GATHER_BLOCK).min(self.end)
+        }
     }
 }
 
