@@ -80,7 +80,7 @@ pub struct WrapperTraining {
     /// added to WD: it keeps the Gaussians faithful to the pixels while f synthesizes texture
     /// (0: WD alone).
     pub pixel_weight: f32,
-    /// Memory the cached ground-truth features may take, in bytes.
+    /// Memory the cached ground-truth features and conditioning channels may take, in bytes.
     pub cache_bytes: usize,
 }
 
@@ -96,10 +96,16 @@ pub(crate) struct WrapperStage {
     /// The training views' size.
     width: usize,
     height: usize,
-    /// Per training view: the conditioning channels [H, W, k], when f has any.
+    /// The training cameras and the scene's frame, which f's conditioning channels depend on.
+    cameras: Vec<Camera>,
+    frame: SceneFrame,
+    /// Per training view, its conditioning channels [H, W, k] (when f has any), while they fit
+    /// in `settings.cache_bytes`: held for every view, they took 6 GB on a 250-view scene at
+    /// 800x533 (14 channels of f32 per pixel).
     conditioning: Vec<Option<Tensor<3>>>,
     /// Ground-truth features per (view, crop), while they fit in `settings.cache_bytes`.
     targets: HashMap<(usize, usize), WdTarget>,
+    /// What the two caches hold.
     cached_bytes: usize,
 }
 
@@ -188,17 +194,7 @@ impl WrapperStage {
         device: &Device,
     ) -> Self {
         let (width, height) = (cameras[0].width as usize, cameras[0].height as usize);
-        let config = settings.config;
-        let k = config.conditioning_channels();
-        let conditioning = cameras
-            .iter()
-            .map(|camera| {
-                (k > 0).then(|| {
-                    Tensor::from_data(TensorData::new(conditioning(&config, camera, frame), [height, width, k]), device)
-                })
-            })
-            .collect();
-        let flat = flat_tensor(&initial_parameters(&config, rng), device);
+        let flat = flat_tensor(&initial_parameters(&settings.config, rng), device);
         Self {
             first: flat.zeros_like(),
             second: flat.zeros_like(),
@@ -206,7 +202,9 @@ impl WrapperStage {
             steps: 0,
             width,
             height,
-            conditioning,
+            cameras: cameras.to_vec(),
+            frame,
+            conditioning: vec![None; cameras.len()],
             targets: HashMap::new(),
             cached_bytes: 0,
             wd,
@@ -248,7 +246,7 @@ impl WrapperStage {
         let flat = self.flat.clone().autodiff().require_grad();
         let (wx, wy) = (window.x0 as usize, window.y0 as usize);
         let pixels = image.clone().reshape([height * width, 3]);
-        let input = match &self.conditioning[view] {
+        let input = match self.view_conditioning(view) {
             Some(c) => {
                 let k = c.dims()[2];
                 let c = c.clone().slice([wy..wy + height, wx..wx + width, 0..k]).reshape([height * width, k]);
@@ -278,6 +276,28 @@ impl WrapperStage {
         let loss = self.wd.distortion(shown.clone().slice(inside), target, &log2_sigma);
         let shown = shown.squeeze_dim::<3>(0).permute([1, 2, 0]);
         (loss, shown, flat)
+    }
+
+    /// View `view`'s conditioning channels [H, W, k], or `None` when f has none: from the
+    /// cache, or computed and kept if they fit in the cache's budget.
+    fn view_conditioning(&mut self, view: usize) -> Option<Tensor<3>> {
+        let config = self.settings.config;
+        let k = config.conditioning_channels();
+        if k == 0 {
+            return None;
+        }
+        if let Some(c) = &self.conditioning[view] {
+            return Some(c.clone());
+        }
+        let (height, width) = (self.height, self.width);
+        let values = conditioning(&config, &self.cameras[view], self.frame);
+        let c = Tensor::from_data(TensorData::new(values, [height, width, k]), &self.flat.device());
+        let bytes = height * width * k * size_of::<f32>();
+        if self.cached_bytes + bytes <= self.settings.cache_bytes {
+            self.cached_bytes += bytes;
+            self.conditioning[view] = Some(c.clone());
+        }
+        Some(c)
     }
 
     /// The Adam step of f, or `None` (and nothing changed) if it would leave a non-finite value.
@@ -397,6 +417,7 @@ mod tests {
             uncached.push(a);
         }
         assert!(stage.targets.is_empty(), "a cache of 0 bytes holds nothing");
+        assert!(stage.conditioning[0].is_none(), "not even the conditioning channels");
 
         // With room for two targets, the first two crops are cached and give the same losses
         // on every later use; the others are computed each time.
@@ -410,5 +431,17 @@ mod tests {
         }
         assert_eq!(stage.targets.len(), 2);
         assert_eq!(stage.cached_bytes, 2 * one.bytes());
+        assert!(stage.conditioning[0].is_none(), "the conditioning channels (378 KB) did not fit");
+
+        // With room for the conditioning channels too, they are kept from their first use on,
+        // and the losses stay the same.
+        let conditioning_bytes = width * height * stage.settings.config.conditioning_channels() * 4;
+        stage.settings.cache_bytes += conditioning_bytes;
+        for (index, &expected) in uncached.iter().enumerate() {
+            let step = stage.crop(index);
+            assert_eq!(value(stage.loss(0, step, part(step.window).autodiff(), &target).0), expected);
+            assert!(stage.conditioning[0].is_some(), "crop {index}: the channels are cached");
+        }
+        assert_eq!(stage.cached_bytes, 2 * one.bytes() + conditioning_bytes);
     }
 }

@@ -34,8 +34,9 @@ pub(crate) struct WrapperArgs {
     /// Stage 2's least length in steps, for scenes with few views (0: none).
     #[arg(long, default_value_t = DEFAULT_MIN_STEPS, conflicts_with = "no_wrapper")]
     wrapper_min_steps: u32,
-    /// Memory for cached ground-truth WD features, in MiB (a 128-pixel crop takes about 11 MB;
-    /// beyond this budget they are recomputed at each use).
+    /// Memory for cached ground-truth WD features and f's conditioning channels, in MiB (a
+    /// 128-pixel crop's features take about 11 MB, a view's channels 56 bytes a pixel; beyond
+    /// this budget they are recomputed at each use).
     #[arg(long, default_value_t = 2048, conflicts_with = "no_wrapper")]
     wd_cache_mib: usize,
     /// Hidden channels of f.
