@@ -4,8 +4,8 @@
 //! The scalar path evaluates exp(-sigma) with [`crate::portable_math::exp_f32`] (within 2 ulps
 //! everywhere). Here sigma is taken in base 2 from the start: the Cholesky factors are scaled
 //! by sqrt(log2(e) / 2) once per splat, so exp(-sigma) = 2^-s with s = p^2 + q^2, and 2^-s
-//! needs no multiplication by log2(e) nor a split ln 2 (the chain from a pixel's offset to its
-//! alpha is about two thirds as long). The polynomial is a degree-5 minimax fit evaluated by
+//! needs no multiplication by log2(e) nor a split ln 2 (a shorter chain of dependent operations
+//! from a pixel's offset to its alpha). The polynomial is a degree-5 minimax fit evaluated by
 //! Estrin's scheme (three levels, not six) and s is clamped instead of selecting the underflow
 //! result. Blending is not bit-normative (SPEC.md section 8): the tests bound the difference
 //! of the vector images and gradients from the scalar path's.
