@@ -75,7 +75,7 @@ struct BandKernel<'a> {
 impl LaneKernel for BandKernel<'_> {
     type Output = ();
     #[inline(always)]
-    fn run<L: Lanes8 + Lanes4d>(self, l: L) {
+    fn run<L: Lanes4d>(self, l: L) {
         blend_band_in(l, self.ty, self.bins, self.splats, self.options, self.band)
     }
 }

@@ -3,7 +3,7 @@
 //! compiles them to: pairs of SSE registers) and, where the CPU has them, AVX2 registers
 //! through `pulp`'s V3 token, found at run time. The blends are written once over these
 //! traits; each operation is one IEEE operation per lane in both, so the two give the same
-//! bits (the tests compare both with the scalar path).
+//! bits (the blends' tests check it).
 //!
 //! Masks are vectors too: all ones in the lanes where a comparison holds.
 //!
@@ -87,9 +87,10 @@ pub fn prefetch<T>(value: &T) {
 /// A computation written once over the lane traits (see [`run_kernel`]).
 pub trait LaneKernel {
     type Output;
-    /// The computation on lanes `l`. Implementations are `#[inline(always)]`, and so is
-    /// everything they call that uses the lanes.
-    fn run<L: Lanes8 + Lanes4d>(self, l: L) -> Self::Output;
+    /// The computation on lanes `l` (f64 lanes and, through [`Lanes4d`]'s supertrait, f32
+    /// ones). Implementations are `#[inline(always)]`, and so is everything they call that
+    /// uses the lanes.
+    fn run<L: Lanes4d>(self, l: L) -> Self::Output;
 }
 
 /// Runs `kernel` in AVX2 registers where the CPU has them (unless `portable` asks for `wide`'s

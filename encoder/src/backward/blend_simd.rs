@@ -13,7 +13,7 @@
 
 use pwgs_decoder::raster::alpha_lanes::{LANES as CHUNK, SplatRows, box_lanes, chunk_dx};
 use pwgs_decoder::raster::blend::SMOOTH_CUTOFF_BAND;
-use pwgs_decoder::raster::lanes::{LaneKernel, Lanes4d, Lanes8, run_kernel};
+use pwgs_decoder::raster::lanes::{LaneKernel, Lanes4d, run_kernel};
 use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{Cutoff, RenderOptions, Rendered, TILE_SIZE};
 
@@ -130,7 +130,7 @@ struct TileKernel<'a> {
 impl LaneKernel for TileKernel<'_> {
     type Output = ();
     #[inline(always)]
-    fn run<L: Lanes8 + Lanes4d>(self, l: L) {
+    fn run<L: Lanes4d>(self, l: L) {
         tile_backward_in(l, self.t, self.rendered, self.options, self.v_color, self.grads)
     }
 }
@@ -138,7 +138,7 @@ impl LaneKernel for TileKernel<'_> {
 /// [`tile_backward`] on the lanes of `l`. No closures in here: a closure is compiled without
 /// the AVX2 features, and the lane operations in it would not be inlined.
 #[inline(always)]
-fn tile_backward_in<L: Lanes8 + Lanes4d>(
+fn tile_backward_in<L: Lanes4d>(
     l: L,
     t: usize,
     rendered: &Rendered,
