@@ -2,7 +2,9 @@
 //! (and their ratio, which survives a noisy machine), the blending alone of each pass (the same
 //! splats and tile lists; projection, sorting and the projection's backward are shared by the
 //! two paths; the vectorized blend in AVX2 registers where the CPU has them, and in `wide`'s
-//! portable vectors, what other CPUs run, with its ratio to the scalar path), blend evaluations per second, and the speedup over the naive reference renderer,
+//! portable vectors, what other CPUs run, with its ratio to the scalar path), the projection
+//! alone in f32 (what rendering uses) and in f64 (its reference), blend evaluations per second,
+//! and the speedup over the naive reference renderer,
 //! for 10k / 100k / 1M random Gaussians at 504x378 and 1008x756. Run with `cargo bench -p
 //! pwgs-encoder --bench rasterizer` (add `-- --quick` for 10k and 100k only). Timings depend on
 //! the machine: report them with it.
@@ -15,9 +17,11 @@ use std::time::Instant;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, blend_bins, rasterize};
+use pwgs_decoder::raster::project::project_precise;
+use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, blend_bins, project_visible, rasterize};
 use pwgs_encoder::backward::backward;
 use pwgs_encoder::backward::blend::blend_backward;
+use rayon::prelude::*;
 
 /// Median of `runs` timings of `f`, in seconds.
 fn time<T>(runs: usize, mut f: impl FnMut() -> T) -> (f64, T) {
@@ -66,7 +70,7 @@ fn main() {
     let scalar = RenderOptions { blend: BlendPath::Scalar, ..options };
     let portable = RenderOptions { blend: BlendPath::Portable, ..options };
     println!(
-        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>6} {:>12} {:>11}",
+        "{:>9} {:>10} {:>9} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>10} {:>6} {:>10} {:>6} {:>10} {:>10} {:>6} {:>12} {:>11}",
         "gaussians",
         "image",
         "visible",
@@ -85,6 +89,9 @@ fn main() {
         "bblend sd.",
         "ratio",
         "bblend pt.",
+        "ratio",
+        "proj f64",
+        "proj f32",
         "ratio",
         "blend pairs",
         "pairs/s bl."
@@ -105,9 +112,13 @@ fn main() {
             let (bblend_scalar, _) = time(runs, || blend_backward(&rendered, &scalar, &weights));
             let (bblend_s, _) = time(runs, || blend_backward(&rendered, &options, &weights));
             let (bblend_p, _) = time(runs, || blend_backward(&rendered, &portable, &weights));
+            let settings = options.projection;
+            let precise = || (0..g.len()).into_par_iter().filter_map(|i| project_precise(&g, i, &cam, &settings));
+            let (project_f64, _) = time(runs, || precise().collect::<Vec<_>>());
+            let (project_f32, _) = time(runs, || project_visible(&g, &cam, &settings));
             let pairs = blend_pairs(&rendered);
             println!(
-                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {blend_scalar:>10.4} {blend_s:>10.4} {:>6.2} {blend_p:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {bblend_scalar:>10.4} {bblend_s:>10.4} {:>6.2} {bblend_p:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
+                "{n:>9} {:>10} {:>9} {forward_scalar:>10.4} {forward:>10.4} {:>6.2} {blend_scalar:>10.4} {blend_s:>10.4} {:>6.2} {blend_p:>10.4} {:>6.2} {backward_scalar:>10.4} {backward_s:>10.4} {:>6.2} {bblend_scalar:>10.4} {bblend_s:>10.4} {:>6.2} {bblend_p:>10.4} {:>6.2} {project_f64:>10.4} {project_f32:>10.4} {:>6.2} {pairs:>12} {:>11.3e}",
                 format!("{width}x{height}"),
                 rendered.splats.len(),
                 forward_scalar / forward,
@@ -116,6 +127,7 @@ fn main() {
                 backward_scalar / backward_s,
                 bblend_scalar / bblend_s,
                 bblend_scalar / bblend_p,
+                project_f64 / project_f32,
                 pairs as f64 / blend_s
             );
         }

@@ -13,6 +13,7 @@ pub mod blend;
 pub mod blend_simd;
 pub mod lanes;
 pub mod project;
+pub mod project_f32;
 pub mod sh;
 pub mod tiles;
 
@@ -130,7 +131,8 @@ pub fn visible_splats(gaussians: &Gaussians, camera: &Camera, settings: &Project
 /// The splats of the Gaussians `camera` sees, in index order.
 pub fn project_visible(gaussians: &Gaussians, camera: &Camera, settings: &ProjectionSettings) -> Vec<Splat> {
     assert!(gaussians.is_consistent(), "Gaussian arrays have inconsistent lengths");
-    (0..gaussians.len()).into_par_iter().filter_map(|i| project::project(gaussians, i, camera, settings)).collect()
+    let projector = project::Projector::new(camera, settings);
+    (0..gaussians.len()).into_par_iter().filter_map(|i| projector.project(gaussians, i)).collect()
 }
 
 /// Blending order: by depth, ties broken by index (so the order does not depend on threads).
