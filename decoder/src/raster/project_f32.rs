@@ -1,4 +1,5 @@
-//! The projection's fast path, in f32: what [`Projector::project`](super::project::Projector::project) renders with.
+//! The projection's fast path, in f32: what
+//! [`Projector::project`](super::project::Projector::project) renders with.
 //!
 //! A splat keeps f32 values only, and the 2D covariance's determinant comes from a sum of
 //! non-negative terms (see [`project_detail`](super::project::project_detail)), so f32 loses
