@@ -8,7 +8,7 @@
 //! the Gaussian goes to the f64 projection instead. The guards are phrased positively so that
 //! NaN fails them, as in the f64 projection.
 
-use glam::{DMat3, DVec3, Mat3, Vec3};
+use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
 
 use super::project::{Footprint, GUARD_BAND, JACOBIAN_FOV_LIMIT, MIN_QUATERNION_NORM_SQUARED, ProjectionSettings};
 use super::sh;
@@ -32,20 +32,6 @@ fn sigmoid(x: f32) -> f32 {
         let e = exp_f32(x);
         e / (1.0 + e)
     }
-}
-
-/// Rotation matrix of a normalized quaternion (w, x, y, z), f32 (the f64 one is
-/// [`rotation_matrix`](super::project::rotation_matrix)).
-fn rotation(q: [f32; 4]) -> Mat3 {
-    let [w, x, y, z] = q;
-    let (xx, yy, zz) = (x * x, y * y, z * z);
-    let (xy, xz, yz) = (x * y, x * z, y * z);
-    let (wx, wy, wz) = (w * x, w * y, w * z);
-    Mat3::from_cols(
-        Vec3::new(1.0 - 2.0 * (yy + zz), 2.0 * (xy + wz), 2.0 * (xz - wy)),
-        Vec3::new(2.0 * (xy - wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz + wx)),
-        Vec3::new(2.0 * (xz + wy), 2.0 * (yz - wx), 1.0 - 2.0 * (xx + yy)),
-    )
 }
 
 /// A camera's constants in f32, computed once for all its Gaussians.
@@ -138,7 +124,8 @@ pub fn footprint(g: &Gaussians, i: usize, view: &View) -> Outcome {
     if !scale.is_finite() {
         return Imprecise;
     }
-    let m = rotation(q.map(|v| v * inv_norm)) * Mat3::from_diagonal(scale);
+    let [qw, qx, qy, qz] = q.map(|v| v * inv_norm);
+    let m = Mat3::from_quat(Quat::from_xyzw(qx, qy, qz, qw)) * Mat3::from_diagonal(scale);
     let [slack_x, slack_y] = view.slack;
     let clamped_tan_x = tan_x.clamp(-left - slack_x, right + slack_x);
     let clamped_tan_y = tan_y.clamp(-top - slack_y, bottom + slack_y);
