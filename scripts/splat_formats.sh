@@ -10,7 +10,8 @@
 #
 # Environment: PWENC and PWBENCH name the binaries (default: the release builds in
 # $CARGO_TARGET_DIR or target/); ORBIT views (8), SIZE pixels (512), UP (0,-1,0), METRICS for
-# `pwenc compare --metrics` (dists; empty for PSNR and SSIM only), WEIGHTS a weights folder.
+# `pwenc compare --metrics` (dists; empty for PSNR and SSIM only), WEIGHTS a weights folder,
+# PWENC_OPTIONS more options for our streams (e.g. --importance-classes).
 # SOG is written on the CPU (`-g cpu`), as no GPU is assumed.
 set -euo pipefail
 [ $# -ge 2 ] || { sed -n '2,15p' "$0" >&2; exit 2; }
@@ -73,7 +74,8 @@ for format in spz sog compressed.ply; do
 done
 ours=()
 for q in "${qualities[@]}"; do
-    "$pwenc" --from "$input" --quality "$q" -o "$dir/ours/q$q.pwb" >"$dir/ours/q$q.log"
+    # shellcheck disable=SC2086 # PWENC_OPTIONS is a list of options
+    "$pwenc" --from "$input" --quality "$q" ${PWENC_OPTIONS:-} -o "$dir/ours/q$q.pwb" >"$dir/ours/q$q.log"
     compare "pwgs-q$q" "$dir/ours/q$q.pwb"
     ours+=("$dir/reports/pwgs-q$q.json")
 done

@@ -11,8 +11,9 @@ use std::path::{Path, PathBuf};
 /// and sections, the noise pyramid, the encoder's quantizer (which decides the bytes), and
 /// what decides the wrapper's quantization steps: the CPU rasterizer's renders of training
 /// views, f's inputs (Plücker embeddings) and f itself, as the encoder evaluates them; and
-/// the anchor base's derivation of each view's Gaussians and its context grid.
-const NORMATIVE: [&str; 13] = [
+/// the anchor base's derivation of each view's Gaussians and its context grid; and the
+/// importance views and classes (which decide the stream's steps per Gaussian).
+const NORMATIVE: [&str; 14] = [
     "bitstream-spec/src",
     "decoder/src/stream",
     "decoder/src/wrapper/noise.rs",
@@ -24,6 +25,7 @@ const NORMATIVE: [&str; 13] = [
     "decoder/src/anchor.rs",
     "decoder/src/context_grid.rs",
     "encoder/src/compress.rs",
+    "encoder/src/importance.rs",
     "encoder/src/anchor/quantize.rs",
     "encoder/src/synthesis.rs",
 ];

@@ -5,7 +5,8 @@ mod common;
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, rgb_to_sh_dc};
 use pwgs_decoder::raster::tiles::ListOrder;
-use pwgs_decoder::raster::{RenderOptions, Window, rasterize, rasterize_window, render};
+use pwgs_decoder::raster::blend::splat_weights;
+use pwgs_decoder::raster::{BlendPath, RenderOptions, Window, rasterize, rasterize_window, render};
 
 #[test]
 fn matches_naive_reference_on_random_scenes() {
@@ -339,7 +340,7 @@ fn output_is_identical_for_any_thread_count() {
 /// SPEC.md section 8 (2/255).
 #[test]
 fn vectorized_blending_matches_the_scalar_path() {
-    use pwgs_decoder::raster::{BlendPath, Cutoff};
+    use pwgs_decoder::raster::Cutoff;
     let (mut pixels, mut decided_otherwise) = (0usize, 0usize);
     let mut check = |g: &Gaussians, cam: &pwgs_decoder::camera::Camera, window: Window, cutoff: Cutoff, what: &str| {
         let options = RenderOptions { background: [0.25, 0.5, 0.75], cutoff, ..Default::default() };
@@ -385,4 +386,23 @@ fn vectorized_blending_matches_the_scalar_path() {
         check(&g, &cam, window, Cutoff::Hard, &format!("seed {seed} window"));
     }
     assert!(decided_otherwise * 1000 <= pixels, "{decided_otherwise} of {pixels} pixels decided otherwise");
+}
+
+#[test]
+fn splat_weights_add_up_to_each_pixels_coverage() {
+    // Per pixel the blended weights T * alpha sum to 1 - T_final, so over the image the
+    // Gaussians' weights sum to the total coverage; a Gaussian out of view weighs 0.
+    let mut g = scene(12, 400);
+    g.push([0.0, 0.0, -5.0], [-2.0; 3], [1.0, 0.0, 0.0, 0.0], 3.0, &[0.5; 12]);
+    let cam = camera(96, 72, 80.0, 80.0, 48.0, 36.0);
+    let options = RenderOptions { blend: BlendPath::Scalar, ..Default::default() };
+    let r = rasterize(&g, &cam, &options);
+    let weights = splat_weights(&r.bins, &r.splats, &options, g.len());
+    assert_eq!(weights.len(), g.len());
+    assert_eq!(weights[g.len() - 1], 0.0, "behind the camera");
+    assert!(weights.iter().all(|&w| w >= 0.0));
+    let coverage: f64 = r.transmittance.iter().map(|&t| 1.0 - f64::from(t)).sum();
+    let total: f64 = weights.iter().map(|&w| f64::from(w)).sum();
+    assert!(coverage > 100.0, "the scene covers {coverage} pixels");
+    assert!((total - coverage).abs() < 1e-4 * coverage, "{total} against {coverage}");
 }

@@ -30,6 +30,7 @@ fn random_content(n: usize, degree: u32, seed: u64) -> PlainGaussians {
     PlainGaussians {
         grid: PositionGrid { origin: [-1.0, -2.0, 0.5], cell: 1e-3, depth },
         positions,
+        classes: None,
         scale_step: 0.05,
         log_scales: (0..n).map(|_| std::array::from_fn(|_| int(&mut rng, 4.0) - 80)).collect(),
         rotation_step: 0.01,

@@ -9,6 +9,7 @@ use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotatio
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::stream::{self, Decoded};
 
+use crate::importance;
 use crate::rotation_frame::canonical_frame;
 use crate::size_fit::{Fit, most_important_fitting};
 
@@ -29,6 +30,11 @@ pub struct QuantizerSettings {
     pub dc_step: f32,
     /// Steps of SH bands 1, 2, 3.
     pub band_steps: [f32; 3],
+    /// Importance classes, when the Gaussians' weights are known: 0 to 8 (none below 2); the
+    /// coarsest class's steps are those of quality 0, so that no class leaves the range where
+    /// a step's error stays small against the value (a scale step beyond that turns a faint
+    /// Gaussian into a large one).
+    pub importance_classes: u8,
 }
 
 impl QuantizerSettings {
@@ -46,12 +52,13 @@ impl QuantizerSettings {
             opacity_step: 0.4 * factor,
             dc_step: 0.16 * factor,
             band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
+            importance_classes: (q as u8 + 1).min(importance::MAX_CLASSES),
         }
     }
 }
 
 /// `sqrt(2)^k` as f32: a power of two built from its exponent, times `SQRT_2` when `k` is odd.
-fn sqrt2_power(k: i32) -> f32 {
+pub(crate) fn sqrt2_power(k: i32) -> f32 {
     let two_power = f32::from_bits(((127 + k.div_euclid(2)) as u32) << 23);
     if k.rem_euclid(2) == 1 { two_power * std::f32::consts::SQRT_2 } else { two_power }
 }
@@ -83,6 +90,8 @@ pub enum CompressError {
     SelfCheck(#[from] stream::DecodeError),
     #[error("{count} Gaussians exceed the stream limit of {limit}")]
     TooMany { count: usize, limit: u32 },
+    #[error("{weights} importance weights for {gaussians} Gaussians")]
+    Weights { weights: usize, gaussians: usize },
     #[error("a stream of at most {target} bytes is impossible: without any Gaussian it takes {minimum}")]
     TargetTooSmall { target: usize, minimum: usize },
 }
@@ -128,7 +137,16 @@ pub fn compress(
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
 ) -> Result<Compressed, CompressError> {
-    compress_to_size(g, settings, context, wrapper, usize::MAX)
+    compress_to_size(g, Coding { settings, weights: None }, context, wrapper, usize::MAX)
+}
+
+/// How to code the Gaussians: the steps and grid, and optionally each Gaussian's blending
+/// weight ([`importance::blend_weights`]), which puts them in importance classes (SPEC.md
+/// section 6.5).
+#[derive(Debug, Clone, Copy)]
+pub struct Coding<'a> {
+    pub settings: &'a QuantizerSettings,
+    pub weights: Option<&'a [f32]>,
 }
 
 /// [`compress`] into at most `target` bytes: every visible Gaussian if the stream fits, else
@@ -137,20 +155,23 @@ pub fn compress(
 /// comparisons one option away.
 pub fn compress_to_size(
     g: &Gaussians,
-    settings: &QuantizerSettings,
+    coding: Coding,
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
     target: usize,
 ) -> Result<Compressed, CompressError> {
     check_finite(g)?;
-    let visible = visible_after_quantization(g, settings.opacity_step);
+    if coding.weights.is_some_and(|w| w.len() != g.len()) {
+        return Err(CompressError::Weights { weights: coding.weights.map_or(0, <[f32]>::len), gaussians: g.len() });
+    }
+    let visible = visible_after_quantization(g, coding.settings.opacity_step);
     let invisible = g.len() - visible.len();
     let rank = || {
         let mut ranked = visible.clone();
         ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
         ranked
     };
-    let write = |keep: Option<&[usize]>| write_selected(g, keep.unwrap_or(&visible), settings, context, wrapper);
+    let write = |keep: Option<&[usize]>| write_selected(g, keep.unwrap_or(&visible), coding, context, wrapper);
     let (kept, bytes) = match most_important_fitting(visible.len(), target, rank, write)? {
         Fit::Fits { kept, bytes } => (kept.map_or(visible.len(), |k| k.len()), bytes),
         Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
@@ -171,33 +192,29 @@ fn importance(g: &Gaussians, i: usize) -> f32 {
 fn write_selected(
     g: &Gaussians,
     keep: &[usize],
-    settings: &QuantizerSettings,
+    coding: Coding,
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
 ) -> Result<Vec<u8>, CompressError> {
     if keep.len() > stream::header::MAX_GAUSSIANS as usize {
         return Err(CompressError::TooMany { count: keep.len(), limit: stream::header::MAX_GAUSSIANS });
     }
-    let mut content = quantize(g, keep, settings);
-    let header = Header {
-        base: BaseKind::Plain3dgs,
-        gaussian_count: content.len() as u32,
-        sh_degree: content.sh_degree,
-        center: context.center,
-        scale: context.scale,
-        background: context.background,
-    };
     // Several Gaussians can share a grid cell; a cell holds at most 255, so refine the grid
     // until none overflows.
+    let mut finer = 0;
     loop {
+        let content = quantize(g, keep, coding, finer);
+        let header = Header {
+            base: BaseKind::Plain3dgs,
+            gaussian_count: content.len() as u32,
+            sh_degree: content.sh_degree,
+            center: context.center,
+            scale: context.scale,
+            background: context.background,
+        };
         match stream::encode(&header, &content, wrapper) {
             Ok(bytes) => return Ok(bytes),
-            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => {
-                let finer =
-                    PositionGrid { cell: content.grid.cell / 2.0, depth: content.grid.depth + 1, ..content.grid };
-                content.positions = quantize_positions(g, keep, &finer);
-                content.grid = finer;
-            }
+            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => finer += 1,
             Err(e) => return Err(e.into()),
         }
     }
@@ -289,14 +306,24 @@ fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
     QuantizedRotation { largest: largest as u8, rest }
 }
 
-fn quantize(g: &Gaussians, visible: &[usize], s: &QuantizerSettings) -> PlainGaussians {
-    let grid = choose_grid(g, visible, s.position_bits);
+/// The quantized Gaussians `keep`, on a grid `finer` levels finer than the settings ask.
+fn quantize(g: &Gaussians, keep: &[usize], coding: Coding, finer: u8) -> PlainGaussians {
+    let s = coding.settings;
+    let fine = choose_grid(g, keep, s.position_bits.saturating_add(finer));
+    let count = s.importance_classes;
+    let classes = coding.weights.filter(|_| count >= 2).map(|w| {
+        let refine = ((count - 1) / 2).min(fine.depth - 1);
+        importance::classes(&keep.iter().map(|&i| w[i]).collect::<Vec<_>>(), count, refine)
+    });
+    // Row `r` (Gaussian `keep[r]`)'s step for a block of step `step`, as the decoder takes it.
+    let step = |r: usize, step: f32| classes.as_ref().map_or(step, |c| c.step(r, step));
     let k = sh_coeff_count(g.sh_degree);
-    let full_rest: Vec<i32> = visible
+    let full_rest: Vec<i32> = keep
         .iter()
-        .flat_map(|&i| {
+        .enumerate()
+        .flat_map(|(r, &i)| {
             let sh = g.sh_of(i);
-            (3..k * 3).map(move |j| quantize_value(sh[j], s.band_steps[sh_band(j / 3) - 1]))
+            (3..k * 3).map(move |j| quantize_value(sh[j], step(r, s.band_steps[sh_band(j / 3) - 1])))
         })
         .collect();
     // Keep the bands up to the highest one with any nonzero quantized coefficient.
@@ -314,19 +341,34 @@ fn quantize(g: &Gaussians, visible: &[usize], s: &QuantizerSettings) -> PlainGau
         if rest_in == 0 { vec![] } else { full_rest.chunks(rest_in).flat_map(|c| c[..rest_out].to_vec()).collect() };
     // Each Gaussian in the frame whose rotation codes smallest (the same covariance).
     let (rotations, log_scales): (Vec<_>, Vec<_>) =
-        visible.iter().map(|&i| canonical_frame(g.rotations[i], g.log_scales[i])).unzip();
+        keep.iter().map(|&i| canonical_frame(g.rotations[i], g.log_scales[i])).unzip();
+    let mut positions = quantize_positions(g, keep, &fine);
+    let refine = classes.as_ref().map_or(0, |c| c.refine);
+    if let Some(c) = &classes {
+        for (q, &class) in positions.iter_mut().zip(&c.of) {
+            *q = q.map(|v| c.snap(class, v));
+        }
+    }
     PlainGaussians {
-        positions: quantize_positions(g, visible, &grid),
-        grid,
+        positions,
+        // POSN's grid: `refine` levels coarser (the cell times a power of two, exact).
+        grid: PositionGrid { cell: fine.cell * (1u32 << refine) as f32, depth: fine.depth - refine, ..fine },
+        classes: classes.clone(),
         scale_step: s.log_scale_step,
-        log_scales: log_scales.iter().map(|l| l.map(|v| quantize_value(v, s.log_scale_step))).collect(),
+        log_scales: (log_scales.iter().enumerate())
+            .map(|(r, l)| l.map(|v| quantize_value(v, step(r, s.log_scale_step))))
+            .collect(),
         rotation_step: s.rotation_step,
-        rotations: rotations.iter().map(|&q| quantize_rotation(q, s.rotation_step)).collect(),
+        rotations: (rotations.iter().enumerate()).map(|(r, &q)| quantize_rotation(q, step(r, s.rotation_step))).collect(),
         opacity_step: s.opacity_step,
-        opacity_logits: visible.iter().map(|&i| quantize_value(g.opacity_logits[i], s.opacity_step)).collect(),
+        opacity_logits: (keep.iter().enumerate())
+            .map(|(r, &i)| quantize_value(g.opacity_logits[i], step(r, s.opacity_step)))
+            .collect(),
         sh_degree: degree,
         dc_step: s.dc_step,
-        sh_dc: visible.iter().map(|&i| std::array::from_fn(|c| quantize_value(g.sh_of(i)[c], s.dc_step))).collect(),
+        sh_dc: (keep.iter().enumerate())
+            .map(|(r, &i)| std::array::from_fn(|c| quantize_value(g.sh_of(i)[c], step(r, s.dc_step))))
+            .collect(),
         band_steps: s.band_steps[..degree as usize].to_vec(),
         sh_rest,
     }

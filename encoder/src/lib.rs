@@ -9,6 +9,7 @@ pub mod evaluate;
 pub mod exit;
 pub mod fidelity;
 pub mod heap;
+pub mod importance;
 pub mod init;
 pub mod metrics;
 pub mod rotation_frame;

@@ -6,6 +6,7 @@ use glam::Vec3;
 use pwgs_decoder::camera::{Camera, Intrinsics};
 use pwgs_decoder::gaussians::sh_coeff_count;
 use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_decoder::stream::classes::ImportanceClasses;
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::octree;
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
@@ -104,6 +105,7 @@ pub fn gaussians(
     PlainGaussians {
         grid,
         positions,
+        classes: None,
         scale_step: steps.scale,
         log_scales: (0..n).map(|_| std::array::from_fn(|_| draws.i32(ranges.log_scale))).collect(),
         rotation_step: steps.rotation,
@@ -129,6 +131,29 @@ pub fn ordinary_gaussians(seed: u64, n: usize, degree: u32) -> PlainGaussians {
     let positions = (0..n).map(|_| draws.point(8)).collect();
     let (steps, ranges) = ordinary(degree);
     gaussians(&mut draws, unit_cube(8), positions, degree, steps, &ranges)
+}
+
+/// `n` Gaussians of degree `degree` in `classes` importance classes (SPEC.md section 6.5) with
+/// factors `sqrt(2)^k` (as f32: powers of two, or their products with sqrt 2 rounded), dropping
+/// `floor(k / 2)` of `refine` levels below a `base_depth`-level grid over the unit cube; each
+/// position drawn on the fine grid and its dropped levels set to their centre.
+pub fn classed_gaussians(seed: u64, n: usize, degree: u32, (classes, refine, base_depth): (u8, u8, u8)) -> PlainGaussians {
+    let mut draws = Draws::new(seed);
+    let of: Vec<u8> = (0..n).map(|_| draws.int(0, i64::from(classes) - 1) as u8).collect();
+    let factors = (0..classes).map(|k| (1u32 << (k / 2)) as f32 * if k % 2 == 1 { std::f32::consts::SQRT_2 } else { 1.0 });
+    let classes = ImportanceClasses {
+        refine,
+        factors: factors.collect(),
+        drops: (0..classes).map(|k| (k / 2).min(refine)).collect(),
+        of,
+    };
+    let positions = (0..n)
+        .map(|i| draws.point(base_depth + refine).map(|c| classes.snap(classes.of[i], c)))
+        .collect();
+    let (steps, ranges) = ordinary(degree);
+    let mut content = gaussians(&mut draws, unit_cube(base_depth), positions, degree, steps, &ranges);
+    content.classes = Some(classes);
+    content
 }
 
 /// The header of `content`, with a colored background and the unit cube's normalization.

@@ -10,7 +10,7 @@ use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 
 use super::Vector;
-use super::content::{self, BlockValues, Draws, Ranges, Steps, header, ordinary_gaussians};
+use super::content::{self, BlockValues, Draws, Ranges, Steps, classed_gaussians, header, ordinary_gaussians};
 use super::raw::{Sections, block, flat_table};
 
 /// Largest quantized magnitude a stream may hold: 2^24 - 1.
@@ -211,6 +211,25 @@ pub fn vectors() -> Result<Vec<Vector>> {
                 .into(),
             clauses: vec!["S2.2-minor-appended", "S2.2-minor-any"],
             stream: newer_minor(),
+            cameras: &["front"],
+        },
+        Vector {
+            name: "importance-classes",
+            description: "300 Gaussians of degree 1 in 9 importance classes (IMPC): factors sqrt(2)^k, POSN on a \
+                          256^3 grid refined by 4 levels, class k dropping floor(k / 2) of them; every attribute \
+                          block with 9 x C tables, class-major."
+                .into(),
+            clauses: vec!["S6.5-classes", "S6.5-positions", "S6.5-attributes"],
+            stream: encode(&classed_gaussians(71, 300, 1, (9, 4, 8)), None),
+            cameras: &["front", "side"],
+        },
+        Vector {
+            name: "importance-classes-deepest",
+            description: "40 Gaussians of degree 0 in 3 classes on a 22-level POSN grid refined by 2 levels: \
+                          depth + refine = 24, the most; class 2 drops 1 level."
+                .into(),
+            clauses: vec!["S6.5-classes", "S6.5-positions", "S6.5-refine-edge"],
+            stream: encode(&classed_gaussians(72, 40, 0, (3, 2, 22)), None),
             cameras: &["front"],
         },
     ];

@@ -118,3 +118,47 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
         }
     }
 }
+
+/// Each Gaussian's summed blending weight over the bins' window, `sum T * alpha` over the
+/// pixels its splat is blended into (what it adds to the image per unit of colour), for
+/// Gaussians `0 .. gaussians` (0 for those without a splat). The same decisions as
+/// [`blend_band`]'s; tiles in order on one thread, so the sums do not depend on threads.
+pub fn splat_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions, gaussians: usize) -> Vec<f32> {
+    let mut weights = vec![0.0f32; gaussians];
+    for t in 0..(bins.tiles_x * bins.tiles_y) as usize {
+        let [x0, x1, y0, y1] = bins.tile_rect(t);
+        let tw = (x1 - x0) as usize;
+        let mut trans = [1.0f32; TILE_PIXELS];
+        let mut done = [false; TILE_PIXELS];
+        let mut remaining = tw * (y1 - y0) as usize;
+        let mut list = bins.splats(t, splats, ListOrder::FrontToBack);
+        'tile: while let Some(block) = list.next_block() {
+            for (_, s) in block {
+                if remaining == 0 {
+                    break 'tile;
+                }
+                let [bx0, bx1, by0, by1] = s.bbox;
+                for py in by0.max(y0)..by1.min(y1) {
+                    let dy = s.mean[1] - (py as f32 + 0.5);
+                    for px in bx0.max(x0)..bx1.min(x1) {
+                        let p = (py - y0) as usize * tw + (px - x0) as usize;
+                        if done[p] {
+                            continue;
+                        }
+                        let dx = s.mean[0] - (px as f32 + 0.5);
+                        let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
+                        let next = trans[p] * (1.0 - alpha);
+                        if next <= options.transmittance_min {
+                            done[p] = true;
+                            remaining -= 1;
+                            continue;
+                        }
+                        weights[s.index as usize] += alpha * trans[p];
+                        trans[p] = next;
+                    }
+                }
+            }
+        }
+    }
+    weights
+}

@@ -13,7 +13,7 @@ use super::anchor_context::{
 use super::entropy::{FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::OctreeError;
-use super::plain::{Models, PositionGrid, ValueCheck, read_block, read_positions, write_block, write_positions};
+use super::plain::{Models, PositionGrid, Rows, ValueCheck, read_block, read_positions, write_block, write_positions};
 use super::wrap::{MAX_EXPONENT, MIN_EXPONENT, power_of_two, quantize_to_step};
 use crate::anchor::{AnchorModel, Mlp};
 
@@ -159,7 +159,7 @@ impl QuantizedAnchors {
         let block = |models, steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
             let mut w = FieldWriter::new();
             steps.iter().for_each(|&s| w.f32(s));
-            write_block(&mut w, models, &order, channels, value);
+            write_block(&mut w, models, (&order, None), channels, value);
             w.into_bytes()
         };
         let masks = (MASKS, block(Models::Tables, &[], k, &|i, c| i32::from(self.masks[i * k + c])));
@@ -194,7 +194,7 @@ impl QuantizedAnchors {
             order.iter().flat_map(|&i| (0..k).map(move |j| i * k + j)).filter(|&r| self.masks[r]).collect();
         let mut w = FieldWriter::new();
         w.f32(self.offset_step);
-        write_block(&mut w, Models::Gaussians, &open, 3, &|r, a| self.offsets[r * 3 + a]);
+        write_block(&mut w, Models::Gaussians, (&open, None), 3, &|r, a| self.offsets[r * 3 + a]);
         w.into_bytes()
     }
 
@@ -243,7 +243,7 @@ impl QuantizedAnchors {
         }
         let (grid, positions) = read_positions(ANCHOR_POSITIONS, positions, count)?;
         let read_masks = || -> Result<Vec<bool>, DecodeError> {
-            let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), count)?;
+            let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), Rows::plain(count))?;
             Ok(masks.into_iter().map(|m| m == 1).collect())
         };
         let (context, masks, blocks) = match container.section(CONTEXT) {
@@ -261,11 +261,11 @@ impl QuantizedAnchors {
             None => {
                 let any: ValueCheck = |_, _| Ok(());
                 let gaussians = |channels| (Models::Gaussians, 1, channels, any);
-                let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), count)?;
-                let (scaling_steps, scaling) = read_block(SCALING, scaling, gaussians(6), count)?;
+                let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), Rows::plain(count))?;
+                let (scaling_steps, scaling) = read_block(SCALING, scaling, gaussians(6), Rows::plain(count))?;
                 let masks = read_masks()?;
                 let open = masks.iter().filter(|&&m| m).count();
-                let (offset_steps, open_offsets) = read_block(OFFSETS, offsets, gaussians(3), open)?;
+                let (offset_steps, open_offsets) = read_block(OFFSETS, offsets, gaussians(3), Rows::plain(open))?;
                 // Masked neural Gaussians have no offsets in the stream: they are 0.
                 let mut offsets = vec![0; count * k * 3];
                 let mut coded = open_offsets.chunks_exact(3);

@@ -3,6 +3,7 @@
 
 pub mod anchor;
 pub mod anchor_context;
+pub mod classes;
 pub mod entropy;
 pub mod gaussian_model;
 pub mod header;
@@ -46,9 +47,10 @@ impl DecodeError {
 }
 
 /// Critical sections a plain-3DGS stream may hold.
-const PLAIN_SECTIONS: [Tag; 8] = [
+const PLAIN_SECTIONS: [Tag; 9] = [
     Tag::HEAD,
     plain::POSITIONS,
+    classes::CLASSES,
     plain::SCALES,
     plain::ROTATIONS,
     plain::OPACITIES,

@@ -1,11 +1,13 @@
 //! The plain-3DGS content of a stream (SPEC.md section 6): positions on an octree-coded grid
 //! and every other attribute uniformly quantized with a step chosen by the encoder, each
-//! channel entropy-coded with its own frequency table.
+//! channel entropy-coded with its own frequency table; optionally with importance classes
+//! ([`ImportanceClasses`]), which scale the steps per Gaussian and code a table per class.
 
 use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 use rayon::prelude::*;
 
 use super::DecodeError;
+use super::classes::{CLASSES, ImportanceClasses};
 use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::{self, MAX_DEPTH, OctreeError};
@@ -30,7 +32,14 @@ impl PositionGrid {
     /// Normative reconstruction: computed in binary64 (exact product, one rounding of the sum)
     /// and rounded once to binary32.
     pub fn position(&self, q: [u32; 3]) -> [f32; 3] {
-        std::array::from_fn(|a| (f64::from(self.origin[a]) + f64::from(q[a]) * f64::from(self.cell)) as f32)
+        self.refined_position(q, 0)
+    }
+
+    /// The position of `q` on the grid `refine` levels finer (cells `cell / 2^refine`, exact in
+    /// binary64; with `depth + refine <= 24` the product is exact too).
+    pub fn refined_position(&self, q: [u32; 3], refine: u8) -> [f32; 3] {
+        let cell = f64::from(self.cell) / f64::from(1u32 << refine);
+        std::array::from_fn(|a| (f64::from(self.origin[a]) + f64::from(q[a]) * cell) as f32)
     }
 }
 
@@ -62,8 +71,13 @@ impl QuantizedRotation {
 /// Quantized plain 3D Gaussians: exactly what a plain-3DGS stream stores.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlainGaussians {
+    /// `POSN`'s grid.
     pub grid: PositionGrid,
+    /// Grid coordinates, on `grid` refined by the classes' `refine` levels when there are
+    /// classes (and then canonical: each class's dropped bits at the centre, see
+    /// [`ImportanceClasses::snap`]).
     pub positions: Vec<[u32; 3]>,
+    pub classes: Option<ImportanceClasses>,
     pub scale_step: f32,
     pub log_scales: Vec<[i32; 3]>,
     pub rotation_step: f32,
@@ -92,22 +106,26 @@ impl PlainGaussians {
         (sh_coeff_count(self.sh_degree) - 1) * 3
     }
 
-    /// The Gaussians this content decodes to (normative reconstruction, SPEC.md section 6).
+    /// The Gaussians this content decodes to (normative reconstruction, SPEC.md sections 6
+    /// and 6.5).
     pub fn dequantize(&self) -> Gaussians {
         let n = self.len();
         let rest = self.rest_per_gaussian();
+        let step = |i: usize, s: f32| self.classes.as_ref().map_or(s, |c| c.step(i, s));
         let mut sh = Vec::with_capacity(n * (rest + 3));
         for i in 0..n {
-            sh.extend(self.sh_dc[i].map(|q| q as f32 * self.dc_step));
+            let dc_step = step(i, self.dc_step);
+            sh.extend(self.sh_dc[i].map(|q| q as f32 * dc_step));
             for (j, &q) in self.sh_rest[i * rest..(i + 1) * rest].iter().enumerate() {
-                sh.push(q as f32 * self.band_steps[sh_band(1 + j / 3) - 1]);
+                sh.push(q as f32 * step(i, self.band_steps[sh_band(1 + j / 3) - 1]));
             }
         }
+        let refine = self.classes.as_ref().map_or(0, |c| c.refine);
         Gaussians {
-            means: self.positions.iter().map(|&q| self.grid.position(q)).collect(),
-            log_scales: self.log_scales.iter().map(|q| q.map(|v| v as f32 * self.scale_step)).collect(),
-            rotations: self.rotations.iter().map(|r| r.quaternion(self.rotation_step)).collect(),
-            opacity_logits: self.opacity_logits.iter().map(|&q| q as f32 * self.opacity_step).collect(),
+            means: self.positions.iter().map(|&q| self.grid.refined_position(q, refine)).collect(),
+            log_scales: (0..n).map(|i| self.log_scales[i].map(|v| v as f32 * step(i, self.scale_step))).collect(),
+            rotations: (0..n).map(|i| self.rotations[i].quaternion(step(i, self.rotation_step))).collect(),
+            opacity_logits: (0..n).map(|i| self.opacity_logits[i] as f32 * step(i, self.opacity_step)).collect(),
             sh_degree: self.sh_degree,
             sh,
         }
@@ -115,13 +133,18 @@ impl PlainGaussians {
 
     /// The sections of this content, attributes in the order the octree lists positions.
     pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
-        let (positions, order) = write_positions(&self.grid, &self.positions)?;
+        let refine = self.classes.as_ref().map_or(0, |c| c.refine);
+        let coarse: Vec<[u32; 3]> = self.positions.iter().map(|q| q.map(|c| c >> refine)).collect();
+        let (positions, order) = write_positions(&self.grid, &coarse)?;
         let mut sections = vec![(POSITIONS, positions)];
-
+        if let Some(classes) = &self.classes {
+            sections.push((CLASSES, classes.write(&self.positions, &order)));
+        }
+        let classes = self.classes.as_ref();
         let block = |steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
             let mut w = FieldWriter::new();
             steps.iter().for_each(|&s| w.f32(s));
-            write_block(&mut w, Models::Tables, &order, channels, value);
+            write_block(&mut w, Models::Tables, (&order, classes), channels, value);
             w.into_bytes()
         };
         sections.push((SCALES, block(&[self.scale_step], 3, &|i, c| self.log_scales[i][c])));
@@ -167,12 +190,17 @@ impl PlainGaussians {
         if rest == 0 && container.section(SH_REST).is_some() {
             return Err(DecodeError::invalid(SH_REST, "present, but the SH degree is 0 (the section must be absent)"));
         }
-        let (grid, positions) = read_positions(POSITIONS, positions_payload, count)?;
+        let (grid, mut positions) = read_positions(POSITIONS, positions_payload, count)?;
+        let classes = match container.section(CLASSES) {
+            Some(s) => Some(ImportanceClasses::read(s.payload, grid.depth, &mut positions)?),
+            None => None,
+        };
+        let rows = Rows { count, classes: classes.as_ref() };
         let decoded: Vec<Result<Block, DecodeError>> = blocks
             .par_iter()
             .zip(block_payloads)
             .map(|(&(tag, steps, channels, check), bytes)| match bytes {
-                Some(bytes) => read_block(tag, bytes, (Models::Tables, steps, channels, check), count),
+                Some(bytes) => read_block(tag, bytes, (Models::Tables, steps, channels, check), rows),
                 None => Ok((vec![], vec![])),
             })
             .collect();
@@ -192,6 +220,7 @@ impl PlainGaussians {
         Ok(Self {
             grid,
             positions,
+            classes,
             scale_step: scale_steps[0],
             log_scales: triples(scales),
             rotation_step: rotation_steps[0],
@@ -295,21 +324,29 @@ impl Models {
     }
 }
 
-/// Block syntax: one model per channel, then the range-coded values, row by row (in `order`),
-/// channel by channel.
+/// Block syntax: one model per channel (per class and channel, class-major, with importance
+/// classes), then the range-coded values, row by row (in `order`), channel by channel, each
+/// with its row's class's model.
 pub(super) fn write_block(
     w: &mut FieldWriter,
     models: Models,
-    order: &[usize],
+    (order, classes): (&[usize], Option<&ImportanceClasses>),
     channels: usize,
     value: &dyn Fn(usize, usize) -> i32,
 ) {
-    let tables: Vec<FrequencyTable> = (0..channels)
-        .map(|c| models.fit_and_write(w, &order.iter().map(|&i| value(i, c)).collect::<Vec<_>>()))
+    let class_of = |i: usize| classes.map_or(0, |c| usize::from(c.of[i]));
+    let groups = classes.map_or(1, |c| c.factors.len());
+    let tables: Vec<FrequencyTable> = (0..groups * channels)
+        .map(|t| {
+            let (group, c) = (t / channels, t % channels);
+            let values: Vec<i32> = order.iter().filter(|&&i| class_of(i) == group).map(|&i| value(i, c)).collect();
+            models.fit_and_write(w, &values)
+        })
         .collect();
     let mut coder = SymbolEncoder::new();
     for &i in order {
-        for (c, table) in tables.iter().enumerate() {
+        let row_tables = &tables[class_of(i) * channels..][..channels];
+        for (c, table) in row_tables.iter().enumerate() {
             coder.value(table, value(i, c));
         }
     }
@@ -326,23 +363,46 @@ pub(super) fn read_step(r: &mut FieldReader) -> Result<f32, FieldError> {
     }
 }
 
-/// Reads `steps` step sizes (each finite and positive) and a block of `channels` channels for
-/// `count` rows, each value passing `check` as it is decoded.
+/// The rows of a block: how many, and their classes when the stream has importance classes.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Rows<'a> {
+    pub count: usize,
+    pub classes: Option<&'a ImportanceClasses>,
+}
+
+impl Rows<'_> {
+    pub(super) fn plain(count: usize) -> Self {
+        Self { count, classes: None }
+    }
+}
+
+/// Reads `steps` step sizes (each finite and positive, also times every class's factor) and a
+/// block of `channels` channels for `rows`, each value passing `check` as it is decoded.
 pub(super) fn read_block(
     tag: Tag,
     payload: &[u8],
     (models, steps, channels, check): (Models, usize, usize, ValueCheck),
-    count: usize,
+    rows: Rows,
 ) -> Result<Block, DecodeError> {
     let name = String::from_utf8_lossy(&tag.0).into_owned();
     let mut r = FieldReader::new(&name, payload);
     let step_values = (0..steps).map(|_| read_step(&mut r)).collect::<Result<Vec<f32>, FieldError>>()?;
-    let tables = (0..channels).map(|_| models.read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
+    let factors = rows.classes.map_or(&[][..], |c| &c.factors);
+    for (&s, (k, &f)) in step_values.iter().flat_map(|s| std::iter::repeat(s).zip(factors.iter().enumerate())) {
+        let scaled = s * f;
+        if !(scaled > 0.0 && (scaled * MAX_MAGNITUDE as f32).is_finite()) {
+            let problem = format!("{s} times class {k}'s factor {f} is not positive or too large");
+            return Err(r.error("step", problem).into());
+        }
+    }
+    let groups = factors.len().max(1);
+    let tables = (0..groups * channels).map(|_| models.read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
     let coded = |e: EntropyError| DecodeError::coded(tag, e);
     let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
-    let mut values = Vec::with_capacity(count * channels);
-    for _ in 0..count {
-        for (channel, table) in tables.iter().enumerate() {
+    let mut values = Vec::with_capacity(rows.count * channels);
+    for i in 0..rows.count {
+        let class = rows.classes.map_or(0, |c| usize::from(c.of[i]));
+        for (channel, table) in tables[class * channels..][..channels].iter().enumerate() {
             let value = coder.value(table).map_err(coded)?;
             check(channel, value).map_err(|problem| DecodeError::invalid(tag, problem))?;
             values.push(value);

@@ -2,6 +2,7 @@
 //! stream's renders against the model's own on an orbit.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
@@ -13,6 +14,7 @@ use serde::Serialize;
 use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};
 use crate::compress::StreamContext;
 use crate::fidelity::{orbit_cameras, renders};
+use crate::importance;
 use crate::metrics::psnr::psnr;
 
 /// Views on a circle around the model, rendered from the input and from the decoded stream.
@@ -36,6 +38,11 @@ pub struct ImportJob {
     /// Save the orbit's renders (input and decoded) as PNGs here.
     pub orbit_renders: Option<PathBuf>,
     pub report: Option<PathBuf>,
+    /// Code the Gaussians in importance classes by how much they show from all around
+    /// (SPEC.md section 6.5).
+    pub importance: bool,
+    /// The model's up direction: the importance views are on or above its horizon.
+    pub up: [f32; 3],
 }
 
 #[derive(Serialize)]
@@ -57,7 +64,25 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
     let gaussians = read_model(ply, job.spz_axes)?;
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
     let context = StreamContext::from_gaussians(&gaussians, job.background);
-    let (compressed, stream) = write_stream(&gaussians, &context, &job.stream, None)?;
+    let weights = match job.importance {
+        true => {
+            let start = Instant::now();
+            let cameras = importance::cameras(&context, Vec3::from(job.up), importance::VIEW_SIZE)?;
+            let options = RenderOptions { background: job.background, ..Default::default() };
+            let weights = importance::blend_weights(&gaussians, &cameras, &options);
+            let hidden = weights.iter().filter(|&&w| w == 0.0).count();
+            println!(
+                "importance: {} views of {size}x{size} in {:.1} s; {hidden} of {} Gaussians never blended",
+                cameras.len(),
+                start.elapsed().as_secs_f64(),
+                gaussians.len(),
+                size = importance::VIEW_SIZE,
+            );
+            Some(weights)
+        }
+        false => None,
+    };
+    let (compressed, stream) = write_stream(&gaussians, &context, &job.stream, None, weights.as_deref())?;
     let ratio = ply_bytes as f64 / stream.bytes as f64;
     println!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), stream.path, stream.bytes);
     let mut orbit_psnr = Vec::new();

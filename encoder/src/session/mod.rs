@@ -18,7 +18,7 @@ use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
-use crate::compress::{Compressed, QuantizerSettings, StreamContext, compress_to_size};
+use crate::compress::{Coding, Compressed, QuantizerSettings, StreamContext, compress_to_size};
 use crate::synthesis::{QuantizationSample, choose_quantization};
 use pwgs_dataset::Dataset;
 use pwgs_decoder::camera::Camera;
@@ -93,11 +93,13 @@ fn write_stream(
     context: &StreamContext,
     options: &StreamOptions,
     wrapper: Option<&QuantizedSynthesis>,
+    weights: Option<&[f32]>,
 ) -> Result<(Compressed, StreamSummary)> {
     let start = Instant::now();
     let settings = QuantizerSettings::for_quality(options.quality);
     let limit = options.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
-    let compressed = compress_to_size(g, &settings, context, wrapper, limit)?;
+    let coding = Coding { settings: &settings, weights };
+    let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
     pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
         .with_context(|| format!("cannot write {}", path.display()))?;

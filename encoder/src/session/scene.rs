@@ -127,7 +127,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let stream = match &job.stream {
         Some(stream) => {
             let context = StreamContext { center: n.center.to_array(), scale: n.scale, background };
-            Some(write_stream(&gaussians, &context, stream, wrapper.as_ref())?)
+            Some(write_stream(&gaussians, &context, stream, wrapper.as_ref(), None)?)
         }
         None => None,
     };

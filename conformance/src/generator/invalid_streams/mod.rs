@@ -2,6 +2,7 @@
 //! pin which failure is reported first: decision 7), CRCs sealed again so that each reaches the
 //! check it targets. Each names the SPEC.md clause it breaks and the error it must produce.
 
+mod classes;
 mod coding;
 mod container;
 mod order;
@@ -25,6 +26,7 @@ pub fn refusals() -> Vec<Refusal> {
     coding::coding(&bases, &mut cases);
     sections::sections(&bases, &mut cases);
     order::order(&bases, &mut cases);
+    classes::classes(&mut cases);
     cases.0
 }
 

@@ -42,7 +42,7 @@ const ANCHOR_ONLY: &[&str] = &[
 /// Options of training on a scene, besides the wrapper's, which `--from-ply` does not read.
 const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
 /// Options only `--from-ply` reads (its input and its orbit check).
-const IMPORT_ONLY: &[&str] = &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders"];
+const IMPORT_ONLY: &[&str] = &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes"];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Base {
@@ -89,7 +89,8 @@ pub(crate) struct EncodeArgs {
     /// from the decoded stream, and report the PSNR between them.
     #[arg(long)]
     orbit: Option<usize>,
-    /// Up direction of the orbit (`x,y,z`; captures in COLMAP conventions usually have -y up).
+    /// Up direction of the orbit and of the importance classes' views (`x,y,z`; captures in
+    /// COLMAP conventions usually have -y up).
     #[arg(long, default_value = "0,-1,0", value_parser = parse_vector)]
     up: [f32; 3],
     /// Width and height of the orbit views.
@@ -98,6 +99,10 @@ pub(crate) struct EncodeArgs {
     /// Save the orbit renders (input and decoded) as PNGs in this folder.
     #[arg(long, requires = "orbit")]
     orbit_renders: Option<PathBuf>,
+    /// With --from-ply: code each Gaussian with steps by how much it shows from 26 views all
+    /// around the model, coarser the less it shows (importance classes, SPEC.md section 6.5).
+    #[arg(long)]
+    importance_classes: bool,
     /// Base representation.
     #[arg(long, value_enum, default_value = "anchor")]
     pub(crate) base: Base,
@@ -320,6 +325,8 @@ impl EncodeArgs {
             orbit: self.orbit.map(|views| Orbit { views, up: self.up, size: self.orbit_size }),
             orbit_renders: self.orbit_renders.clone(),
             report: self.report.clone(),
+            importance: self.importance_classes,
+            up: self.up,
         })
     }
 

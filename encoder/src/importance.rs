@@ -1,0 +1,140 @@
+//! How much each Gaussian shows, for importance classes (SPEC.md section 6.5): its largest
+//! summed blending weight over views from all around the model, and from it a class per
+//! Gaussian, each class a factor sqrt(2) coarser than the one before.
+//!
+//! The views look at the scene's center from the directions of a cube's faces, edges and
+//! corners on or above the horizon, so that no way round is favoured, and they need no
+//! trigonometry: with `+ - * / sqrt` only, the classes, and so the stream,
+//! are the same on every machine.
+
+use glam::Vec3;
+use pwgs_decoder::camera::{Camera, CameraError, Intrinsics};
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::raster::blend::splat_weights;
+use pwgs_decoder::raster::{RenderOptions, Window, tiles, visible_splats};
+use pwgs_decoder::stream::classes::ImportanceClasses;
+use rayon::prelude::*;
+
+use crate::compress::{StreamContext, sqrt2_power};
+
+/// Width and height of the views.
+pub const VIEW_SIZE: u32 = 512;
+/// Most classes: 0 (the reference) to 8 (steps 16 times coarser, positions 4 levels coarser).
+pub const MAX_CLASSES: u8 = 9;
+/// The weight that class 0 starts at: this quantile (in percent) of all the weights.
+const REFERENCE_PERCENTILE: usize = 90;
+
+/// The 26 unit directions from a cube's center to its faces, edges and corners.
+fn directions() -> Vec<Vec3> {
+    let mut out = Vec::with_capacity(26);
+    for x in -1i8..=1 {
+        for y in -1i8..=1 {
+            for z in -1i8..=1 {
+                if (x, y, z) != (0, 0, 0) {
+                    out.push(Vec3::new(f32::from(x), f32::from(y), f32::from(z)).normalize());
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Cameras of `size` pixels and a 60-degree field of view at the scene's scale from its
+/// center, looking at it from those of the 26 [`directions`] on or above the horizon of `up`
+/// (17 when `up` is an axis): where a viewer walks around a scene, not from under its floor.
+pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camera>, CameraError> {
+    let up = up.normalize_or_zero();
+    if up == Vec3::ZERO {
+        return Err(CameraError::NonFinitePose);
+    }
+    // 1 / tan(30 degrees) = sqrt(3).
+    let f = size as f32 / 2.0 * 3f32.sqrt();
+    let intrinsics = Intrinsics { width: size, height: size, fx: f, fy: f, cx: size as f32 / 2.0, cy: size as f32 / 2.0 };
+    let center = Vec3::from(context.center);
+    directions()
+        .into_iter()
+        .filter(|d| d.dot(up) >= -1e-6)
+        .map(|d| {
+            let camera_up = if d.cross(up).length_squared() < 1e-6 { up.any_orthonormal_vector() } else { up };
+            Camera::look_at(intrinsics, center + d * context.scale, center, camera_up)
+        })
+        .collect()
+}
+
+/// Per Gaussian, its largest summed blending weight (pixels' worth of colour) over `cameras`.
+/// Gaussians inside an opaque model, or too faint, get 0.
+pub fn blend_weights(g: &Gaussians, cameras: &[Camera], options: &RenderOptions) -> Vec<f32> {
+    let per_view = |camera: &Camera| {
+        let splats = visible_splats(g, camera, &options.projection);
+        let bins = tiles::bin(&splats, Window::full(camera));
+        splat_weights(&bins, &splats, options, g.len())
+    };
+    cameras
+        .par_iter()
+        .map(per_view)
+        .reduce(|| vec![0.0; g.len()], |a, b| a.iter().zip(&b).map(|(x, y)| x.max(*y)).collect())
+}
+
+/// Classes for Gaussians of weights `weights`: class `k` where the reference weight (the
+/// [`REFERENCE_PERCENTILE`]th percentile) over the Gaussian's weight rounds to `2^k` in the
+/// log domain (`c * 2^(j - 1/2) <= reference` for `j = 1 ..= k`), at most `count - 1` (also
+/// for weight 0). Class `k` scales the steps by `sqrt(2)^k` and drops `floor(k / 2)` position
+/// levels, at most `refine`.
+pub fn classes(weights: &[f32], count: u8, refine: u8) -> ImportanceClasses {
+    let reference = match weights.is_empty() {
+        true => 0.0,
+        false => {
+            let mut sorted = weights.to_vec();
+            sorted.sort_by(f32::total_cmp);
+            sorted[(sorted.len() - 1) * REFERENCE_PERCENTILE / 100]
+        }
+    };
+    let thresholds: Vec<f32> = (1..i32::from(count)).map(|j| sqrt2_power(2 * j - 1)).collect();
+    let of = weights.iter().map(|&w| thresholds.iter().filter(|&&t| w * t <= reference).count() as u8).collect();
+    ImportanceClasses {
+        refine,
+        factors: (0..i32::from(count)).map(sqrt2_power).collect(),
+        drops: (0..count).map(|k| (k / 2).min(refine)).collect(),
+        of,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_views_surround_the_center_at_the_scene_scale() {
+        let context = StreamContext { center: [1.0, 2.0, 3.0], scale: 4.0, background: [0.0; 3] };
+        let cams = cameras(&context, Vec3::NEG_Y, 64).unwrap();
+        assert_eq!(cams.len(), 17);
+        let mean = cams.iter().map(|c| c.center()).sum::<Vec3>() / 17.0;
+        // The ring on the horizon and the upper half: the mean is above the center (-y).
+        assert!(mean.x.abs() < 1e-5 && mean.z.abs() < 1e-5 && mean.y < 2.0 - 1.0, "{mean}");
+        assert!(cams.iter().all(|c| c.center().y <= 2.0 + 1e-5), "a view from below");
+        assert!(cameras(&context, Vec3::ZERO, 64).is_err());
+        for c in &cams {
+            assert!((c.center().distance(Vec3::new(1.0, 2.0, 3.0)) - 4.0).abs() < 1e-5);
+            let ahead = c.world_to_camera(Vec3::new(1.0, 2.0, 3.0));
+            assert!(ahead.x.abs() < 1e-4 && ahead.y.abs() < 1e-4 && ahead.z > 3.99, "{ahead}");
+        }
+    }
+
+    #[test]
+    fn classes_halve_the_weight_per_two_classes() {
+        // Reference (90th percentile of 10 weights: the 9th smallest, index 8) is 8.
+        let weights = [8.0, 9.0, 8.0, 5.7, 5.6, 2.0, 1.0, 0.01, 0.0, 8.0];
+        let c = classes(&weights, 9, 4);
+        // 8 / 5.7 = 1.40 < sqrt 2 (class 0); 8 / 5.6 = 1.43 >= sqrt 2 (class 1); 8 / 2 = 4
+        // (class 2, log 2); 8 (class 3); 800 and 0 (the last class).
+        assert_eq!(c.of, vec![0, 0, 0, 0, 1, 2, 3, 8, 8, 0]);
+        assert_eq!(c.drops, vec![0, 0, 1, 1, 2, 2, 3, 3, 4]);
+        assert_eq!(c.factors[0], 1.0);
+        assert_eq!(c.factors[2], 2.0);
+        assert!((c.factors[1] - std::f32::consts::SQRT_2).abs() < 1e-7);
+        assert_eq!(classes(&weights, 9, 1).drops, vec![0, 0, 1, 1, 1, 1, 1, 1, 1]);
+        let three = classes(&weights, 3, 1);
+        assert_eq!(three.of, vec![0, 0, 0, 0, 1, 2, 2, 2, 2, 0]);
+        assert_eq!(three.drops, vec![0, 0, 1]);
+    }
+}
