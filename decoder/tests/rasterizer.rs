@@ -4,8 +4,8 @@ mod common;
 
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, rgb_to_sh_dc};
-use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::blend::splat_weights;
+use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{BlendPath, RenderOptions, Window, rasterize, rasterize_window, render};
 
 #[test]

@@ -359,7 +359,9 @@ fn quantize(g: &Gaussians, keep: &[usize], coding: Coding, finer: u8) -> PlainGa
             .map(|(r, l)| l.map(|v| quantize_value(v, step(r, s.log_scale_step))))
             .collect(),
         rotation_step: s.rotation_step,
-        rotations: (rotations.iter().enumerate()).map(|(r, &q)| quantize_rotation(q, step(r, s.rotation_step))).collect(),
+        rotations: (rotations.iter().enumerate())
+            .map(|(r, &q)| quantize_rotation(q, step(r, s.rotation_step)))
+            .collect(),
         opacity_step: s.opacity_step,
         opacity_logits: (keep.iter().enumerate())
             .map(|(r, &i)| quantize_value(g.opacity_logits[i], step(r, s.opacity_step)))

@@ -142,6 +142,15 @@ fn compresses_an_imported_ply() {
     assert!(half <= bytes.len() / 2 && half + 200 > bytes.len() / 2, "{half} bytes for a target of {target}");
     let pruned = report["stream"]["pruned_to_fit"].as_u64().unwrap();
     assert!(pruned > 300 && report["stream"]["gaussians"].as_u64().unwrap() + pruned == 800, "{report}");
+    // Importance classes: the stream holds IMPC and the same Gaussians.
+    let args = ["--from", &path("in.ply"), "-o", &path("classes.pwb"), "--quality", "7", "--importance-classes"];
+    let out = pwenc(&args);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 17 views"));
+    let classes = std::fs::read(path("classes.pwb")).unwrap();
+    let container = pwgs_bitstream::Container::parse(&classes).unwrap();
+    assert!(container.section(pwgs_decoder::stream::classes::CLASSES).is_some());
+    assert_eq!(pwgs_decoder::stream::decode(&classes).unwrap().scene.plain_gaussians().unwrap().len(), 800);
     // Without -o there is nowhere to write.
     let out = pwenc(&["--from-ply", &path("in.ply")]);
     assert!(!out.status.success());
@@ -242,6 +251,7 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec![scene, "--base", "3dgs", "--wrapper-lambda-scale", "2"], "--wrapper-lambda-scale applies to the anchor"),
         (vec![scene, "--spz-axes", "rdf"], "--spz-axes applies to --from-ply"),
         (vec![scene, "--orbit", "4"], "--orbit applies to --from-ply"),
+        (vec![scene, "--importance-classes"], "--importance-classes applies to --from-ply"),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

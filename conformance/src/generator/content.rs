@@ -137,19 +137,23 @@ pub fn ordinary_gaussians(seed: u64, n: usize, degree: u32) -> PlainGaussians {
 /// factors `sqrt(2)^k` (as f32: powers of two, or their products with sqrt 2 rounded), dropping
 /// `floor(k / 2)` of `refine` levels below a `base_depth`-level grid over the unit cube; each
 /// position drawn on the fine grid and its dropped levels set to their centre.
-pub fn classed_gaussians(seed: u64, n: usize, degree: u32, (classes, refine, base_depth): (u8, u8, u8)) -> PlainGaussians {
+pub fn classed_gaussians(
+    seed: u64,
+    n: usize,
+    degree: u32,
+    (classes, refine, base_depth): (u8, u8, u8),
+) -> PlainGaussians {
     let mut draws = Draws::new(seed);
     let of: Vec<u8> = (0..n).map(|_| draws.int(0, i64::from(classes) - 1) as u8).collect();
-    let factors = (0..classes).map(|k| (1u32 << (k / 2)) as f32 * if k % 2 == 1 { std::f32::consts::SQRT_2 } else { 1.0 });
+    let factors =
+        (0..classes).map(|k| (1u32 << (k / 2)) as f32 * if k % 2 == 1 { std::f32::consts::SQRT_2 } else { 1.0 });
     let classes = ImportanceClasses {
         refine,
         factors: factors.collect(),
         drops: (0..classes).map(|k| (k / 2).min(refine)).collect(),
         of,
     };
-    let positions = (0..n)
-        .map(|i| draws.point(base_depth + refine).map(|c| classes.snap(classes.of[i], c)))
-        .collect();
+    let positions = (0..n).map(|i| draws.point(base_depth + refine).map(|c| classes.snap(classes.of[i], c))).collect();
     let (steps, ranges) = ordinary(degree);
     let mut content = gaussians(&mut draws, unit_cube(base_depth), positions, degree, steps, &ranges);
     content.classes = Some(classes);

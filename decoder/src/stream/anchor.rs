@@ -261,7 +261,8 @@ impl QuantizedAnchors {
             None => {
                 let any: ValueCheck = |_, _| Ok(());
                 let gaussians = |channels| (Models::Gaussians, 1, channels, any);
-                let (feature_steps, features) = read_block(FEATURES, features, gaussians(feature_dim), Rows::plain(count))?;
+                let (feature_steps, features) =
+                    read_block(FEATURES, features, gaussians(feature_dim), Rows::plain(count))?;
                 let (scaling_steps, scaling) = read_block(SCALING, scaling, gaussians(6), Rows::plain(count))?;
                 let masks = read_masks()?;
                 let open = masks.iter().filter(|&&m| m).count();

@@ -1,0 +1,92 @@
+//! Importance classes (SPEC.md section 6.5) as the encoder uses them: weights from renders,
+//! classes from weights, and what they buy on the views the weights came from.
+
+use pwgs_decoder::camera::Camera;
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::stream::Content;
+use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
+use pwgs_encoder::importance::blend_weights;
+use pwgs_encoder::metrics::psnr::psnr;
+
+/// Random Gaussians in front of [`camera`], 4000 of them, so that many hide others.
+fn scene() -> Gaussians {
+    random_gaussians(&mut SplitMix64(7), 4000, 0, [-4.5, -2.5])
+}
+
+fn camera() -> Camera {
+    axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0)
+}
+
+/// (bytes, PSNR against the model's render) of the stream at `quality`, with or without classes.
+fn point(g: &Gaussians, quality: u8, weights: Option<&[f32]>) -> (usize, f64) {
+    let context = StreamContext::from_gaussians(g, [0.0; 3]);
+    let settings = QuantizerSettings::for_quality(quality);
+    let c = compress_to_size(g, Coding { settings: &settings, weights }, &context, None, usize::MAX).unwrap();
+    let options = RenderOptions::default();
+    let decoded = render(c.decoded.scene.plain_gaussians().unwrap(), &camera(), &options);
+    (c.bytes.len(), psnr(&decoded, &render(g, &camera(), &options)))
+}
+
+#[test]
+fn classes_beat_uniform_steps_on_the_views_they_come_from() {
+    let g = scene();
+    let weights = blend_weights(&g, &[camera()], &RenderOptions::default());
+    let uniform: Vec<(usize, f64)> = (2..=10).map(|q| point(&g, q, None)).collect();
+    // The uniform curve's PSNR at `bytes`, linear between its points.
+    let at = |bytes: usize| {
+        let w = uniform.windows(2).find(|w| w[0].0 <= bytes && bytes <= w[1].0).expect("inside the curve");
+        let t = (bytes - w[0].0) as f64 / (w[1].0 - w[0].0) as f64;
+        w[0].1 + t * (w[1].1 - w[0].1)
+    };
+    for q in [4u8, 6, 8] {
+        let (bytes, p) = point(&g, q, Some(&weights));
+        // Measured: 2 to 4 dB above the curve at these qualities.
+        assert!(p > at(bytes) + 1.0, "quality {q}: {bytes} bytes at {p:.2} dB, uniform steps {:.2} dB", at(bytes));
+    }
+}
+
+#[test]
+fn unseen_gaussians_take_the_coarsest_class() {
+    let mut g = scene();
+    let mut rng = SplitMix64(8);
+    for _ in 0..200 {
+        let mean = [rng.uniform(-1.0, 1.0), rng.uniform(-1.0, 1.0), rng.uniform(-4.0, -2.0)];
+        g.push(mean, [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 2.0, &[0.3; 3]);
+    }
+    let weights = blend_weights(&g, &[camera()], &RenderOptions::default());
+    let unseen = weights.iter().filter(|&&w| w == 0.0).count();
+    assert!(unseen >= 200, "only {unseen} Gaussians unseen");
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let settings = QuantizerSettings::for_quality(8);
+    let c = compress_to_size(&g, Coding { settings: &settings, weights: Some(&weights) }, &context, None, usize::MAX)
+        .unwrap();
+    let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
+    let classes = content.classes.as_ref().expect("classes");
+    assert_eq!(classes.factors.len(), 9);
+    // (The decoded order is the octree's, so count rather than match.)
+    let last = classes.of.iter().filter(|&&k| k == 8).count();
+    assert!(last >= unseen, "{last} Gaussians in the last class, {unseen} unseen");
+    // Quality 2 allows classes 0 to 2 only: the coarsest steps are quality 0's.
+    let settings = QuantizerSettings::for_quality(2);
+    let c = compress_to_size(&g, Coding { settings: &settings, weights: Some(&weights) }, &context, None, usize::MAX)
+        .unwrap();
+    let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
+    assert_eq!(content.classes.as_ref().unwrap().factors.len(), 3);
+    let settings = QuantizerSettings::for_quality(0);
+    let c = compress_to_size(&g, Coding { settings: &settings, weights: Some(&weights) }, &context, None, usize::MAX)
+        .unwrap();
+    let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
+    assert!(content.classes.is_none(), "quality 0 has one class: no IMPC");
+}
+
+#[test]
+fn weights_of_the_wrong_length_are_refused() {
+    let g = scene();
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let settings = QuantizerSettings::default();
+    let short = vec![1.0; 10];
+    let coding = Coding { settings: &settings, weights: Some(&short) };
+    assert!(compress_to_size(&g, coding, &context, None, usize::MAX).is_err());
+}
