@@ -75,6 +75,9 @@ pub struct Compressed {
     pub decoded: Decoded,
     /// Gaussians dropped as invisible (opacity below 1/255 after quantization).
     pub invisible: usize,
+    /// Visible Gaussians dropped as unseen: blended into no pixel of the views their weights
+    /// come from ([`Coding::prune_unseen`]).
+    pub unseen: usize,
     /// Visible Gaussians dropped, least important first, to fit a target size.
     pub pruned: usize,
 }
@@ -137,7 +140,7 @@ pub fn compress(
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
 ) -> Result<Compressed, CompressError> {
-    compress_to_size(g, Coding { settings, weights: None }, context, wrapper, usize::MAX)
+    compress_to_size(g, Coding { settings, weights: None, prune_unseen: false }, context, wrapper, usize::MAX)
 }
 
 /// How to code the Gaussians: the steps and grid, and optionally each Gaussian's blending
@@ -147,6 +150,8 @@ pub fn compress(
 pub struct Coding<'a> {
     pub settings: &'a QuantizerSettings,
     pub weights: Option<&'a [f32]>,
+    /// Drop the Gaussians of weight 0, which no view shows (with `weights` only).
+    pub prune_unseen: bool,
 }
 
 /// [`compress`] into at most `target` bytes: every visible Gaussian if the stream fits, else
@@ -164,8 +169,12 @@ pub fn compress_to_size(
     if coding.weights.is_some_and(|w| w.len() != g.len()) {
         return Err(CompressError::Weights { weights: coding.weights.map_or(0, <[f32]>::len), gaussians: g.len() });
     }
-    let visible = visible_after_quantization(g, coding.settings.opacity_step);
+    let mut visible = visible_after_quantization(g, coding.settings.opacity_step);
     let invisible = g.len() - visible.len();
+    if let Some(w) = coding.weights.filter(|_| coding.prune_unseen) {
+        visible.retain(|&i| w[i] > 0.0);
+    }
+    let unseen = g.len() - invisible - visible.len();
     let rank = || {
         let mut ranked = visible.clone();
         ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
@@ -177,7 +186,7 @@ pub fn compress_to_size(
         Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
     };
     let decoded = stream::decode(&bytes)?;
-    Ok(Compressed { bytes, decoded, invisible, pruned: visible.len() - kept })
+    Ok(Compressed { bytes, decoded, invisible, unseen, pruned: visible.len() - kept })
 }
 
 /// How much a Gaussian can show, for choosing what to drop: the log of its opacity times its

@@ -124,11 +124,24 @@ fn a_target_size_drops_the_least_important_gaussians() {
     let settings = QuantizerSettings::default();
     let full = compress(&g, &settings, &context, None).unwrap();
     assert_eq!(full.pruned, 0);
-    let roomy =
-        compress_to_size(&g, Coding { settings: &settings, weights: None }, &context, None, full.bytes.len()).unwrap();
+    let roomy = compress_to_size(
+        &g,
+        Coding { settings: &settings, weights: None, prune_unseen: false },
+        &context,
+        None,
+        full.bytes.len(),
+    )
+    .unwrap();
     assert_eq!((roomy.bytes, roomy.pruned), (full.bytes.clone(), 0), "a stream that fits is left whole");
     for target in [full.bytes.len() * 2 / 3, full.bytes.len() / 4] {
-        let c = compress_to_size(&g, Coding { settings: &settings, weights: None }, &context, None, target).unwrap();
+        let c = compress_to_size(
+            &g,
+            Coding { settings: &settings, weights: None, prune_unseen: false },
+            &context,
+            None,
+            target,
+        )
+        .unwrap();
         assert!(c.bytes.len() <= target, "{} bytes for a target of {target}", c.bytes.len());
         // Within about a Gaussian's worth of bytes (some tens) of the target.
         assert!(c.bytes.len() + 200 > target, "{} bytes for a target of {target}", c.bytes.len());
@@ -140,6 +153,9 @@ fn a_target_size_drops_the_least_important_gaussians() {
         };
         assert!(mean_logit(&c.decoded) > mean_logit(&full.decoded));
     }
-    let err = compress_to_size(&g, Coding { settings: &settings, weights: None }, &context, None, 50).err().unwrap();
+    let err =
+        compress_to_size(&g, Coding { settings: &settings, weights: None, prune_unseen: false }, &context, None, 50)
+            .err()
+            .unwrap();
     assert!(matches!(err, CompressError::TargetTooSmall { target: 50, .. }), "{err}");
 }

@@ -23,7 +23,9 @@ fn camera() -> Camera {
 fn point(g: &Gaussians, quality: u8, weights: Option<&[f32]>) -> (usize, f64) {
     let context = StreamContext::from_gaussians(g, [0.0; 3]);
     let settings = QuantizerSettings::for_quality(quality);
-    let c = compress_to_size(g, Coding { settings: &settings, weights }, &context, None, usize::MAX).unwrap();
+    let c =
+        compress_to_size(g, Coding { settings: &settings, weights, prune_unseen: false }, &context, None, usize::MAX)
+            .unwrap();
     let options = RenderOptions::default();
     let decoded = render(c.decoded.scene.plain_gaussians().unwrap(), &camera(), &options);
     (c.bytes.len(), psnr(&decoded, &render(g, &camera(), &options)))
@@ -60,23 +62,48 @@ fn unseen_gaussians_take_the_coarsest_class() {
     assert!(unseen >= 200, "only {unseen} Gaussians unseen");
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
     let settings = QuantizerSettings::for_quality(8);
-    let c = compress_to_size(&g, Coding { settings: &settings, weights: Some(&weights) }, &context, None, usize::MAX)
-        .unwrap();
+    let c = compress_to_size(
+        &g,
+        Coding { settings: &settings, weights: Some(&weights), prune_unseen: false },
+        &context,
+        None,
+        usize::MAX,
+    )
+    .unwrap();
     let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
     let classes = content.classes.as_ref().expect("classes");
     assert_eq!(classes.factors.len(), 9);
     // (The decoded order is the octree's, so count rather than match.)
     let last = classes.of.iter().filter(|&&k| k == 8).count();
     assert!(last >= unseen, "{last} Gaussians in the last class, {unseen} unseen");
+    // Pruned instead: gone, and counted.
+    let coding = Coding { settings: &settings, weights: Some(&weights), prune_unseen: true };
+    let pruned = compress_to_size(&g, coding, &context, None, usize::MAX).unwrap();
+    assert_eq!((pruned.unseen, pruned.invisible), (unseen, 0));
+    assert_eq!(pruned.decoded.header.gaussian_count as usize, g.len() - unseen);
+    let means = &pruned.decoded.scene.plain_gaussians().unwrap().means;
+    assert!(means.iter().all(|m| m[2] > 0.0), "a Gaussian behind the camera was kept");
     // Quality 2 allows classes 0 to 2 only: the coarsest steps are quality 0's.
     let settings = QuantizerSettings::for_quality(2);
-    let c = compress_to_size(&g, Coding { settings: &settings, weights: Some(&weights) }, &context, None, usize::MAX)
-        .unwrap();
+    let c = compress_to_size(
+        &g,
+        Coding { settings: &settings, weights: Some(&weights), prune_unseen: false },
+        &context,
+        None,
+        usize::MAX,
+    )
+    .unwrap();
     let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
     assert_eq!(content.classes.as_ref().unwrap().factors.len(), 3);
     let settings = QuantizerSettings::for_quality(0);
-    let c = compress_to_size(&g, Coding { settings: &settings, weights: Some(&weights) }, &context, None, usize::MAX)
-        .unwrap();
+    let c = compress_to_size(
+        &g,
+        Coding { settings: &settings, weights: Some(&weights), prune_unseen: false },
+        &context,
+        None,
+        usize::MAX,
+    )
+    .unwrap();
     let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
     assert!(content.classes.is_none(), "quality 0 has one class: no IMPC");
 }
@@ -87,6 +114,6 @@ fn weights_of_the_wrong_length_are_refused() {
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
     let settings = QuantizerSettings::default();
     let short = vec![1.0; 10];
-    let coding = Coding { settings: &settings, weights: Some(&short) };
+    let coding = Coding { settings: &settings, weights: Some(&short), prune_unseen: false };
     assert!(compress_to_size(&g, coding, &context, None, usize::MAX).is_err());
 }

@@ -38,6 +38,8 @@ pub struct StreamOptions {
     pub quality: u8,
     /// Largest stream size in bytes; the least important Gaussians are dropped to fit.
     pub target_bytes: Option<u64>,
+    /// With importance weights: drop the Gaussians no importance view shows.
+    pub prune_unseen: bool,
 }
 
 /// What a written stream holds.
@@ -48,6 +50,8 @@ pub struct StreamSummary {
     pub quality: u8,
     pub gaussians: u32,
     pub dropped_invisible: usize,
+    /// Visible Gaussians dropped because no importance view shows them (`--prune-unseen`).
+    pub dropped_unseen: usize,
     /// Visible Gaussians dropped to meet the target size.
     pub pruned_to_fit: usize,
     pub target_bytes: Option<u64>,
@@ -98,7 +102,7 @@ fn write_stream(
     let start = Instant::now();
     let settings = QuantizerSettings::for_quality(options.quality);
     let limit = options.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
-    let coding = Coding { settings: &settings, weights };
+    let coding = Coding { settings: &settings, weights, prune_unseen: options.prune_unseen };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
     pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
@@ -111,6 +115,7 @@ fn write_stream(
         quality: options.quality,
         gaussians: header.gaussian_count,
         dropped_invisible: compressed.invisible,
+        dropped_unseen: compressed.unseen,
         pruned_to_fit: compressed.pruned,
         target_bytes: options.target_bytes,
         sh_degree_in: g.sh_degree,
@@ -129,6 +134,9 @@ fn write_stream(
         summary.dropped_invisible,
         summary.seconds
     );
+    if options.prune_unseen {
+        println!("{} Gaussians that no importance view shows dropped (--prune-unseen)", summary.dropped_unseen);
+    }
     if let Some(target) = options.target_bytes {
         println!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);
     }

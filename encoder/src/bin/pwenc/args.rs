@@ -42,7 +42,8 @@ const ANCHOR_ONLY: &[&str] = &[
 /// Options of training on a scene, besides the wrapper's, which `--from-ply` does not read.
 const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
 /// Options only `--from-ply` reads (its input and its orbit check).
-const IMPORT_ONLY: &[&str] = &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes"];
+const IMPORT_ONLY: &[&str] =
+    &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes", "prune_unseen"];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Base {
@@ -103,6 +104,11 @@ pub(crate) struct EncodeArgs {
     /// around the model, coarser the less it shows (importance classes, SPEC.md section 6.5).
     #[arg(long)]
     importance_classes: bool,
+    /// With --importance-classes: drop the Gaussians that none of its views shows (hidden
+    /// inside the model or below its horizon). Off by default: a view from elsewhere may show
+    /// them.
+    #[arg(long, requires = "importance_classes")]
+    prune_unseen: bool,
     /// Base representation.
     #[arg(long, value_enum, default_value = "anchor")]
     pub(crate) base: Base,
@@ -258,7 +264,12 @@ impl EncodeArgs {
     }
 
     fn stream(&self) -> Option<StreamOptions> {
-        self.output.clone().map(|path| StreamOptions { path, quality: self.quality, target_bytes: self.target_bytes })
+        self.output.clone().map(|path| StreamOptions {
+            path,
+            quality: self.quality,
+            target_bytes: self.target_bytes,
+            prune_unseen: self.prune_unseen,
+        })
     }
 
     /// `--eval` with its metrics, when given.
