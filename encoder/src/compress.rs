@@ -16,7 +16,7 @@ use crate::size_fit::{Fit, most_important_fitting};
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
 /// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
 pub const DEFAULT_QUALITY: u8 = 5;
-pub const MAX_QUALITY: u8 = 10;
+pub const MAX_QUALITY: u8 = 12;
 
 /// Quantization choices of the plain-3DGS coder.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,7 +30,7 @@ pub struct QuantizerSettings {
     pub dc_step: f32,
     /// Steps of SH bands 1, 2, 3.
     pub band_steps: [f32; 3],
-    /// Importance classes, when the Gaussians' weights are known: 0 to 8 (none below 2); the
+    /// Importance classes, when the Gaussians' weights are known: 2 to 13 (none below 2); the
     /// coarsest class's steps are those of quality 0, so that no class leaves the range where
     /// a step's error stays small against the value (a scale step beyond that turns a faint
     /// Gaussian into a large one).

@@ -1,6 +1,9 @@
-//! How much each Gaussian shows, for importance classes (SPEC.md section 6.5): its largest
-//! summed blending weight over views from all around the model, and from it a class per
-//! Gaussian, each class a factor sqrt(2) coarser than the one before.
+//! How much each Gaussian shows, for importance classes (SPEC.md section 6.5): its blending
+//! weight summed over the pixels of views from all around the model, and from it a class per
+//! Gaussian, each class a factor sqrt(2) coarser than the one before. A value's error shows in
+//! proportion to that weight, so steps shrinking as its inverse square root minimize the
+//! weighted squared error for the bytes (measured: summing over the views codes guitar about
+//! 2% smaller at equal PSNR than taking each Gaussian's largest view).
 //!
 //! The views look at the scene's center from the directions of a cube's faces, edges and
 //! corners on or above the horizon, so that no way round is favoured, and they need no
@@ -19,8 +22,9 @@ use crate::compress::{StreamContext, sqrt2_power};
 
 /// Width and height of the views.
 pub const VIEW_SIZE: u32 = 512;
-/// Most classes: 0 (the reference) to 8 (steps 16 times coarser, positions 4 levels coarser).
-pub const MAX_CLASSES: u8 = 9;
+/// Most classes: 0 (the reference) to 12 (steps 64 times coarser, positions 6 levels coarser;
+/// 13 rather than 9 classes code guitar about 1.6% smaller at equal PSNR at quality 10).
+pub const MAX_CLASSES: u8 = 13;
 /// The weight that class 0 starts at: this quantile (in percent) of all the weights.
 const REFERENCE_PERCENTILE: usize = 90;
 
@@ -62,18 +66,21 @@ pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camer
         .collect()
 }
 
-/// Per Gaussian, its largest summed blending weight (pixels' worth of colour) over `cameras`.
-/// Gaussians inside an opaque model, or too faint, get 0.
+/// Per Gaussian, its blending weight summed over every pixel of `cameras` (pixels' worth of
+/// colour). Gaussians inside an opaque model, or too faint, get 0.
 pub fn blend_weights(g: &Gaussians, cameras: &[Camera], options: &RenderOptions) -> Vec<f32> {
     let per_view = |camera: &Camera| {
         let splats = visible_splats(g, camera, &options.projection);
         let bins = tiles::bin(&splats, Window::full(camera));
         splat_weights(&bins, &splats, options, g.len())
     };
-    cameras
-        .par_iter()
-        .map(per_view)
-        .reduce(|| vec![0.0; g.len()], |a, b| a.iter().zip(&b).map(|(x, y)| x.max(*y)).collect())
+    // Summed in view order, so that the sums do not depend on threads.
+    let views: Vec<Vec<f32>> = cameras.par_iter().map(per_view).collect();
+    let mut total = vec![0.0f32; g.len()];
+    for view in &views {
+        total.iter_mut().zip(view).for_each(|(t, w)| *t += w);
+    }
+    total
 }
 
 /// Classes for Gaussians of weights `weights`: class `k` where the reference weight (the

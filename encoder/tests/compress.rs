@@ -91,16 +91,19 @@ fn gaussians_sharing_a_cell_refine_the_grid() {
 #[test]
 fn quality_steps_are_exact_powers_of_sqrt2() {
     let default = QuantizerSettings::default();
-    for q in 0..=10u8 {
+    for q in 0..=pwgs_encoder::compress::MAX_QUALITY {
         let s = QuantizerSettings::for_quality(q);
         let k = 5 - i32::from(q);
         // sqrt(2)^k: a power of two, times SQRT_2 for odd k.
         let expected = 2f32.powi(k.div_euclid(2)) * if k.rem_euclid(2) == 1 { std::f32::consts::SQRT_2 } else { 1.0 };
         assert_eq!(s.log_scale_step, default.log_scale_step * expected, "quality {q}");
         assert_eq!(s.band_steps[2], default.band_steps[2] * expected, "quality {q}");
-        let bits = [10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15][usize::from(q)];
+        let bits = [10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15, 16][usize::from(q)];
         assert_eq!(s.position_bits, bits, "quality {q}");
+        // Importance classes: as many as make the coarsest class quality 0's steps, at most 13.
+        assert_eq!(s.importance_classes, (q + 1).min(13), "quality {q}");
     }
+    assert_eq!(QuantizerSettings::for_quality(200), QuantizerSettings::for_quality(12), "clamped");
 }
 
 /// The same model gives the same bytes whatever the number of threads (DESIGN.md section 5).
