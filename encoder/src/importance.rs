@@ -83,26 +83,30 @@ pub fn blend_weights(g: &Gaussians, cameras: &[Camera], options: &RenderOptions)
     total
 }
 
-/// Classes for Gaussians of weights `weights`: class `k` where the reference weight (the
-/// [`REFERENCE_PERCENTILE`]th percentile) over the Gaussian's weight rounds to `2^k` in the
-/// log domain (`c * 2^(j - 1/2) <= reference` for `j = 1 ..= k`), at most `count - 1` (also
-/// for weight 0). Class `k` scales the steps by `sqrt(2)^k` and drops `floor(k / 2)` position
-/// levels, at most `refine`.
-pub fn classes(weights: &[f32], count: u8, refine: u8) -> ImportanceClasses {
-    let reference = match weights.is_empty() {
-        true => 0.0,
-        false => {
-            let mut sorted = weights.to_vec();
-            sorted.sort_by(f32::total_cmp);
-            sorted[(sorted.len() - 1) * REFERENCE_PERCENTILE / 100]
-        }
-    };
+/// The weight importance is measured against: the [`REFERENCE_PERCENTILE`]th percentile of
+/// `weights` (0 when there are none).
+pub fn reference(weights: &[f32]) -> f32 {
+    let mut sorted = weights.to_vec();
+    sorted.sort_by(f32::total_cmp);
+    sorted.get(sorted.len().saturating_sub(1) * REFERENCE_PERCENTILE / 100).copied().unwrap_or(0.0)
+}
+
+/// Classes for Gaussians of weights `weights`: class `k` where `reference` over the Gaussian's
+/// weight rounds to `2^k` in the log domain (`w * 2^(j - 1/2) <= reference` for `j = 1 ..= k`),
+/// at most `count - 1` (also for weight 0). Class `k` scales the steps by `sqrt(2)^k` and drops
+/// `floor(k / 2)` position levels, at most `max_refine`. Classes above the coarsest one used are
+/// left out (at least 2 remain), and the refinement goes no deeper than the largest drop used:
+/// levels every Gaussian codes cost less in the octree.
+pub fn classes(weights: &[f32], reference: f32, count: u8, max_refine: u8) -> ImportanceClasses {
     let thresholds: Vec<f32> = (1..i32::from(count)).map(|j| sqrt2_power(2 * j - 1)).collect();
-    let of = weights.iter().map(|&w| thresholds.iter().filter(|&&t| w * t <= reference).count() as u8).collect();
+    let of: Vec<u8> =
+        weights.iter().map(|&w| thresholds.iter().filter(|&&t| w * t <= reference).count() as u8).collect();
+    let used = of.iter().max().map_or(2, |&k| (k + 1).max(2));
+    let refine = ((used - 1) / 2).min(max_refine);
     ImportanceClasses {
         refine,
-        factors: (0..i32::from(count)).map(sqrt2_power).collect(),
-        drops: (0..count).map(|k| (k / 2).min(refine)).collect(),
+        factors: (0..i32::from(used)).map(sqrt2_power).collect(),
+        drops: (0..used).map(|k| (k / 2).min(refine)).collect(),
         of,
     }
 }
@@ -132,7 +136,9 @@ mod tests {
     fn classes_halve_the_weight_per_two_classes() {
         // Reference (90th percentile of 10 weights: the 9th smallest, index 8) is 8.
         let weights = [8.0, 9.0, 8.0, 5.7, 5.6, 2.0, 1.0, 0.01, 0.0, 8.0];
-        let c = classes(&weights, 9, 4);
+        assert_eq!(reference(&weights), 8.0);
+        assert_eq!(reference(&[]), 0.0);
+        let c = classes(&weights, 8.0, 9, 4);
         // 8 / 5.7 = 1.40 < sqrt 2 (class 0); 8 / 5.6 = 1.43 >= sqrt 2 (class 1); 8 / 2 = 4
         // (class 2, log 2); 8 (class 3); 800 and 0 (the last class).
         assert_eq!(c.of, vec![0, 0, 0, 0, 1, 2, 3, 8, 8, 0]);
@@ -140,9 +146,16 @@ mod tests {
         assert_eq!(c.factors[0], 1.0);
         assert_eq!(c.factors[2], 2.0);
         assert!((c.factors[1] - std::f32::consts::SQRT_2).abs() < 1e-7);
-        assert_eq!(classes(&weights, 9, 1).drops, vec![0, 0, 1, 1, 1, 1, 1, 1, 1]);
-        let three = classes(&weights, 3, 1);
+        assert_eq!(classes(&weights, 8.0, 9, 1).drops, vec![0, 0, 1, 1, 1, 1, 1, 1, 1]);
+        let three = classes(&weights, 8.0, 3, 1);
         assert_eq!(three.of, vec![0, 0, 0, 0, 1, 2, 2, 2, 2, 0]);
         assert_eq!(three.drops, vec![0, 0, 1]);
+        // Without the faintest two, classes 4 to 8 are empty: left out, and the refinement
+        // stops at class 3's one level.
+        let bright = classes(&weights[..7], 8.0, 9, 4);
+        assert_eq!((bright.factors.len(), bright.refine, bright.drops.clone()), (4, 1, vec![0, 0, 1, 1]));
+        // Every Gaussian in class 0: still two classes (SPEC.md 6.5), nothing refined.
+        let flat = classes(&[8.0; 5], 8.0, 9, 4);
+        assert_eq!((flat.factors.len(), flat.refine), (2, 0));
     }
 }

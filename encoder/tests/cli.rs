@@ -252,7 +252,7 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec![scene, "--spz-axes", "rdf"], "--spz-axes applies to --from-ply"),
         (vec![scene, "--orbit", "4"], "--orbit applies to --from-ply"),
         (vec![scene, "--importance-classes"], "--importance-classes applies to --from-ply"),
-        (vec!["--from", "m.ply", "-o", "x.pwb", "--prune-unseen"], "--importance-classes"),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--prune-faint"], "--importance-classes"),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

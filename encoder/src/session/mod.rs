@@ -38,8 +38,8 @@ pub struct StreamOptions {
     pub quality: u8,
     /// Largest stream size in bytes; the least important Gaussians are dropped to fit.
     pub target_bytes: Option<u64>,
-    /// With importance weights: drop the Gaussians no importance view shows.
-    pub prune_unseen: bool,
+    /// With importance weights: drop the Gaussians too faint to pay for their bytes.
+    pub prune_faint: bool,
 }
 
 /// What a written stream holds.
@@ -50,8 +50,9 @@ pub struct StreamSummary {
     pub quality: u8,
     pub gaussians: u32,
     pub dropped_invisible: usize,
-    /// Visible Gaussians dropped because no importance view shows them (`--prune-unseen`).
-    pub dropped_unseen: usize,
+    /// Visible Gaussians dropped as too faint in the importance views to pay for their bytes
+    /// (`--prune-faint`).
+    pub dropped_faint: usize,
     /// Visible Gaussians dropped to meet the target size.
     pub pruned_to_fit: usize,
     pub target_bytes: Option<u64>,
@@ -102,7 +103,7 @@ fn write_stream(
     let start = Instant::now();
     let settings = QuantizerSettings::for_quality(options.quality);
     let limit = options.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
-    let coding = Coding { settings: &settings, weights, prune_unseen: options.prune_unseen };
+    let coding = Coding { settings: &settings, weights, prune_faint: options.prune_faint };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
     pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
@@ -115,7 +116,7 @@ fn write_stream(
         quality: options.quality,
         gaussians: header.gaussian_count,
         dropped_invisible: compressed.invisible,
-        dropped_unseen: compressed.unseen,
+        dropped_faint: compressed.faint,
         pruned_to_fit: compressed.pruned,
         target_bytes: options.target_bytes,
         sh_degree_in: g.sh_degree,
@@ -134,8 +135,8 @@ fn write_stream(
         summary.dropped_invisible,
         summary.seconds
     );
-    if options.prune_unseen {
-        println!("{} Gaussians that no importance view shows dropped (--prune-unseen)", summary.dropped_unseen);
+    if options.prune_faint {
+        println!("{} Gaussians too faint in the importance views dropped (--prune-faint)", summary.dropped_faint);
     }
     if let Some(target) = options.target_bytes {
         println!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);

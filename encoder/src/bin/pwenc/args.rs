@@ -43,7 +43,7 @@ const ANCHOR_ONLY: &[&str] = &[
 const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
 /// Options only `--from-ply` reads (its input and its orbit check).
 const IMPORT_ONLY: &[&str] =
-    &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes", "prune_unseen"];
+    &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes", "prune_faint"];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Base {
@@ -104,11 +104,12 @@ pub(crate) struct EncodeArgs {
     /// around the model, coarser the less it shows (importance classes, SPEC.md section 6.5).
     #[arg(long)]
     importance_classes: bool,
-    /// With --importance-classes: drop the Gaussians that none of its views shows (hidden
-    /// inside the model or below its horizon). Off by default: a view from elsewhere may show
-    /// them.
+    /// With --importance-classes: drop the Gaussians whose summed weight in its views is below
+    /// 2^(4 - quality) times the reference (the 90th percentile), those no view shows among
+    /// them: where a missing Gaussian costs less than its bytes buy elsewhere. Off by default:
+    /// views unlike those may show them.
     #[arg(long, requires = "importance_classes")]
-    prune_unseen: bool,
+    prune_faint: bool,
     /// Base representation.
     #[arg(long, value_enum, default_value = "anchor")]
     pub(crate) base: Base,
@@ -268,7 +269,7 @@ impl EncodeArgs {
             path,
             quality: self.quality,
             target_bytes: self.target_bytes,
-            prune_unseen: self.prune_unseen,
+            prune_faint: self.prune_faint,
         })
     }
 
