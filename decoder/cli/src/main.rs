@@ -20,6 +20,7 @@ use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::splat_file::{SpzVersion, gaussians_to_spz_bytes};
 use pwgs_decoder::stream;
 use pwgs_decoder::stream::anchor_context::CONTEXT;
+use pwgs_decoder::stream::classes::CLASSES;
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::residual_picture;
@@ -152,6 +153,22 @@ fn info(path: &Path) -> Result<()> {
                 c.mlp.hidden,
                 c.mlp.weight_exponent,
                 c.mlp.bias_exponent
+            );
+        }
+    }
+    if container.section(CLASSES).is_some() {
+        let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
+        if let stream::Content::Plain(p) = &decoded.content
+            && let Some(c) = &p.classes
+        {
+            let counts: Vec<usize> =
+                (0..c.factors.len()).map(|k| c.of.iter().filter(|&&x| usize::from(x) == k).count()).collect();
+            println!(
+                "importance    {} classes, Gaussians per class {counts:?}; position grid {} levels finer than POSN's, \
+                 levels dropped per class {:?}",
+                c.factors.len(),
+                c.refine,
+                c.drops
             );
         }
     }

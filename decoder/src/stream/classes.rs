@@ -52,6 +52,17 @@ impl ImportanceClasses {
     /// `of` and `positions`) its class and its kept refinement bits. `positions` are on the fine
     /// grid.
     pub(super) fn write(&self, positions: &[[u32; 3]], order: &[usize]) -> Vec<u8> {
+        let count = self.factors.len();
+        assert!((2..=MAX_CLASSES).contains(&count) && self.drops.len() == count, "{count} classes");
+        assert!(self.drops.iter().all(|&d| d <= self.refine), "a class drops more levels than refined");
+        assert_eq!(self.of.len(), positions.len(), "one class per Gaussian");
+        assert!(
+            positions
+                .iter()
+                .zip(&self.of)
+                .all(|(q, &k)| usize::from(k) < count && q.iter().all(|&c| self.snap(k, c) == c)),
+            "a position's dropped levels are not at their centre (ImportanceClasses::snap)"
+        );
         let mut w = FieldWriter::new();
         w.u8(self.factors.len() as u8);
         w.u8(self.refine);
