@@ -1,5 +1,6 @@
-//! Importance classes (SPEC.md section 6.5): streams with `IMPC` round-trip, reconstruct by
-//! the spec's formulas, and every malformed field or chunk is an error naming it.
+//! Importance classes (SPEC.md section 6.5): streams with `IMPC` round-trip (also with colour
+//! differences, 6.6), reconstruct by the spec's formulas, and every malformed field or chunk is
+//! an error naming it.
 
 use pwgs_bitstream::{Container, Tag, write_container};
 use pwgs_decoder::random_scene::SplitMix64;
@@ -37,6 +38,7 @@ fn content(n: usize, seed: u64) -> PlainGaussians {
         sh_dc: (0..n).map(|_| std::array::from_fn(|_| int(6.0))).collect(),
         band_steps: vec![0.03],
         sh_rest: (0..n * 9).map(|_| int(2.0)).collect(),
+        colour_differences: false,
         classes: Some(classes),
     }
 }
@@ -100,6 +102,13 @@ fn classes_round_trip_in_the_octree_order() {
     assert_eq!(a, b);
     // Writing the decoded content again gives the same stream.
     assert_eq!(encode(&decoded), bytes);
+    // With the colours as differences too (SPEC.md 6.6): the same Gaussians, CDIF present.
+    let both = PlainGaussians { colour_differences: true, ..original.clone() };
+    let bytes = encode(&both);
+    assert!(Container::parse(&bytes).unwrap().section(Tag(*b"CDIF")).is_some());
+    let again = decoded_content(&bytes);
+    assert!(again.colour_differences);
+    assert_eq!(again.dequantize(), decoded.dequantize(), "differences changed the Gaussians");
 }
 
 #[test]

@@ -47,6 +47,7 @@ fn random_content(n: usize, degree: u32, seed: u64) -> PlainGaussians {
         sh_dc: (0..n).map(|_| std::array::from_fn(|_| int(&mut rng, 6.0))).collect(),
         band_steps: [0.03, 0.04, 0.05][..degree as usize].to_vec(),
         sh_rest: (0..n * rest).map(|_| int(&mut rng, 1.0)).collect(),
+        colour_differences: false,
     }
 }
 

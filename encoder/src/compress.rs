@@ -235,6 +235,13 @@ fn write_selected(
             background: context.background,
         };
         match stream::encode(&header, &content, wrapper) {
+            Ok(bytes) if content.colour_differences_fit() => {
+                // The colours as differences (SPEC.md 6.6) when that is smaller: it is on
+                // captured scenes (a third of the colours' bytes on biker), not on random ones.
+                let differences = PlainGaussians { colour_differences: true, ..content };
+                let other = stream::encode(&header, &differences, wrapper)?;
+                return Ok(if other.len() < bytes.len() { other } else { bytes });
+            }
             Ok(bytes) => return Ok(bytes),
             Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => finer += 1,
             Err(e) => return Err(e.into()),
@@ -396,5 +403,6 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
             .collect(),
         band_steps: s.band_steps[..degree as usize].to_vec(),
         sh_rest,
+        colour_differences: false,
     }
 }

@@ -162,3 +162,26 @@ fn a_target_size_drops_the_least_important_gaussians() {
             .unwrap();
     assert!(matches!(err, CompressError::TargetTooSmall { target: 50, .. }), "{err}");
 }
+
+/// Colours as differences (SPEC.md 6.6) where they code smaller: on grey colours, not on the
+/// random ones.
+#[test]
+fn grey_colours_are_coded_as_differences() {
+    let has_differences = |g: &pwgs_decoder::gaussians::Gaussians| {
+        let context = StreamContext::from_gaussians(g, [0.0; 3]);
+        let c = compress(g, &QuantizerSettings::default(), &context, None).unwrap();
+        let container = pwgs_bitstream::Container::parse(&c.bytes).unwrap();
+        container.section(pwgs_decoder::stream::colour_differences::COLOUR_DIFFERENCES).is_some()
+    };
+    let mut g = scene();
+    assert!(!has_differences(&g), "random colours");
+    let k = sh_coeff_count(g.sh_degree) * 3;
+    for i in 0..g.len() {
+        // Every coefficient grey: r = b = g.
+        for coefficient in g.sh[i * k..(i + 1) * k].chunks_exact_mut(3) {
+            coefficient[0] = coefficient[1];
+            coefficient[2] = coefficient[1];
+        }
+    }
+    assert!(has_differences(&g), "grey colours");
+}

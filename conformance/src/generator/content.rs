@@ -122,6 +122,7 @@ pub fn gaussians(
         sh_dc: (0..n).map(|_| std::array::from_fn(|_| draws.i32(ranges.dc))).collect(),
         band_steps: steps.bands,
         sh_rest: (0..n * rest).map(|_| draws.i32(ranges.sh_rest)).collect(),
+        colour_differences: false,
     }
 }
 

@@ -214,6 +214,25 @@ pub fn vectors() -> Result<Vec<Vector>> {
             cameras: &["front"],
         },
         Vector {
+            name: "colour-differences",
+            description: "40 Gaussians of degree 2 with CDIF: every colour triple of COLR and SHRS coded as \
+                          (r - g, g, b - g)."
+                .into(),
+            clauses: vec!["S6.6-differences"],
+            stream: encode(&PlainGaussians { colour_differences: true, ..ordinary_gaussians(14, 40, 2) }, None),
+            cameras: &["front", "side"],
+        },
+        Vector {
+            name: "colour-differences-at-limits",
+            description: "CDIF with differences at the values' limits: Gaussian 0's r - g is 2^24 - 1 (r = 2^23, \
+                          g = -(2^23 - 1)), Gaussian 1's b - g is -(2^24 - 1) (b = -(2^24 - 1), g = 0) and its \
+                          r is 2^24 - 1. Not rendered."
+                .into(),
+            clauses: vec!["S6.6-differences", "S6.6-limit"],
+            stream: encode(&colours_at_limits(), None),
+            cameras: &[],
+        },
+        Vector {
             name: "importance-classes",
             description: "300 Gaussians of degree 1 in 9 importance classes (IMPC): factors sqrt(2)^k, POSN on a \
                           256^3 grid refined by 4 levels, class k dropping floor(k / 2) of them; every attribute \
@@ -314,6 +333,14 @@ fn escapes() -> PlainGaussians {
     c.opacity_logits[1] = LARGEST;
     c.sh_dc[1][0] = -LARGEST;
     c.sh_rest[rest] = LARGEST;
+    c
+}
+
+/// Colour differences reaching the values' limit (the `colour-differences-at-limits` vector).
+fn colours_at_limits() -> PlainGaussians {
+    let mut c = PlainGaussians { colour_differences: true, ..ordinary_gaussians(15, 20, 0) };
+    c.sh_dc[0] = [1 << 23, -((1 << 23) - 1), 0];
+    c.sh_dc[1] = [LARGEST, 0, -LARGEST];
     c
 }
 

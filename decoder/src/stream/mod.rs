@@ -4,6 +4,7 @@
 pub mod anchor;
 pub mod anchor_context;
 pub mod classes;
+pub mod colour_differences;
 pub mod entropy;
 pub mod gaussian_model;
 pub mod header;
@@ -47,10 +48,11 @@ impl DecodeError {
 }
 
 /// Critical sections a plain-3DGS stream may hold.
-const PLAIN_SECTIONS: [Tag; 9] = [
+const PLAIN_SECTIONS: [Tag; 10] = [
     Tag::HEAD,
     plain::POSITIONS,
     classes::CLASSES,
+    colour_differences::COLOUR_DIFFERENCES,
     plain::SCALES,
     plain::ROTATIONS,
     plain::OPACITIES,

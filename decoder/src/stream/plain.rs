@@ -8,6 +8,7 @@ use rayon::prelude::*;
 
 use super::DecodeError;
 use super::classes::{CLASSES, ImportanceClasses};
+use super::colour_differences::{self, COLOUR_DIFFERENCES};
 use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::{self, MAX_DEPTH, OctreeError};
@@ -91,6 +92,9 @@ pub struct PlainGaussians {
     pub band_steps: Vec<f32>,
     /// Per Gaussian, `(sh_coeff_count(degree) - 1) * 3` values, [coefficient][rgb].
     pub sh_rest: Vec<i32>,
+    /// Code every colour triple as (r - g, g, b - g) (section `CDIF`, SPEC.md 6.6); see
+    /// [`Self::colour_differences_fit`].
+    pub colour_differences: bool,
 }
 
 impl PlainGaussians {
@@ -104,6 +108,12 @@ impl PlainGaussians {
 
     fn rest_per_gaussian(&self) -> usize {
         (sh_coeff_count(self.sh_degree) - 1) * 3
+    }
+
+    /// Whether the colours can be coded as differences: every difference within the values'
+    /// limit.
+    pub fn colour_differences_fit(&self) -> bool {
+        colour_differences::fit(self.sh_dc.as_flattened()) && colour_differences::fit(&self.sh_rest)
     }
 
     /// The Gaussians this content decodes to (normative reconstruction, SPEC.md sections 6
@@ -156,10 +166,18 @@ impl PlainGaussians {
             }),
         ));
         sections.push((OPACITIES, block(&[self.opacity_step], 1, &|i, _| self.opacity_logits[i])));
-        sections.push((COLORS, block(&[self.dc_step], 3, &|i, c| self.sh_dc[i][c])));
         let rest = self.rest_per_gaussian();
+        let triple = |v: &[i32], c: usize| -> i32 {
+            let t = &v[c / 3 * 3..][..3];
+            if self.colour_differences { colour_differences::coded([t[0], t[1], t[2]], c % 3) } else { t[c % 3] }
+        };
+        if self.colour_differences {
+            assert!(self.colour_differences_fit(), "colour differences beyond 2^24");
+            sections.push((COLOUR_DIFFERENCES, vec![]));
+        }
+        sections.push((COLORS, block(&[self.dc_step], 3, &|i, c| triple(&self.sh_dc[i], c))));
         if rest > 0 {
-            sections.push((SH_REST, block(&self.band_steps, rest, &|i, c| self.sh_rest[i * rest + c])));
+            sections.push((SH_REST, block(&self.band_steps, rest, &|i, c| triple(&self.sh_rest[i * rest..], c))));
         }
         Ok(sections)
     }
@@ -210,8 +228,14 @@ impl PlainGaussians {
         let (scale_steps, scales) = scales?;
         let (rotation_steps, rotation_values) = rotations?;
         let (opacity_steps, opacity_logits) = opacities?;
-        let (dc_steps, colors) = colors?;
-        let (band_steps, sh_rest) = sh_rest?;
+        let (dc_steps, mut colors) = colors?;
+        let (band_steps, mut sh_rest) = sh_rest?;
+        let differences = container.section(COLOUR_DIFFERENCES);
+        if let Some(section) = differences {
+            colour_differences::check_payload(section.payload)?;
+            colour_differences::undo(COLORS, &mut colors)?;
+            colour_differences::undo(SH_REST, &mut sh_rest)?;
+        }
         let rotations = rotation_values
             .chunks_exact(4)
             .map(|r| QuantizedRotation { largest: r[0] as u8, rest: [r[1], r[2], r[3]] })
@@ -232,6 +256,7 @@ impl PlainGaussians {
             sh_dc: triples(colors),
             band_steps,
             sh_rest,
+            colour_differences: differences.is_some(),
         })
     }
 }

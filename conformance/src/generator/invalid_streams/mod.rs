@@ -5,6 +5,7 @@
 mod classes;
 mod coding;
 mod container;
+mod differences;
 mod order;
 mod sections;
 
@@ -27,6 +28,7 @@ pub fn refusals() -> Vec<Refusal> {
     sections::sections(&bases, &mut cases);
     order::order(&bases, &mut cases);
     classes::classes(&mut cases);
+    differences::differences(&mut cases);
     cases.0
 }
 
