@@ -57,7 +57,7 @@ fn encode(content: &PlainGaussians) -> Vec<u8> {
 
 fn decoded_content(bytes: &[u8]) -> PlainGaussians {
     match stream::decode(bytes).unwrap().content {
-        Content::Plain(p) => p,
+        Content::Plain(p) => *p,
         Content::Anchors(_) => panic!("a plain stream decoded as anchors"),
     }
 }
@@ -165,7 +165,8 @@ fn dropped_levels_cost_no_bytes() {
 #[test]
 fn malformed_fields_are_errors_naming_them() {
     let bytes = encode(&content(100, 4));
-    let cases: [(&str, Box<dyn Fn(&mut Vec<u8>)>); 6] = [
+    type Edit = Box<dyn Fn(&mut Vec<u8>)>;
+    let cases: [(&str, Edit); 6] = [
         ("classes", Box::new(|p| p[0] = 1)),
         ("classes", Box::new(|p| p[0] = 17)),
         ("refine", Box::new(|p| p[1] = 15)),

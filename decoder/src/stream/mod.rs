@@ -77,7 +77,7 @@ const ANCHOR_SECTIONS: [Tag; 9] = [
 /// What a stream's base holds, quantized, as coded.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Content {
-    Plain(PlainGaussians),
+    Plain(Box<PlainGaussians>),
     Anchors(Box<QuantizedAnchors>),
 }
 
@@ -215,7 +215,9 @@ pub fn decode(bytes: &[u8]) -> Result<Decoded, DecodeError> {
     check_count_against_length(&header, bytes.len())?;
     let count = header.gaussian_count as usize;
     let content = match header.base {
-        BaseKind::Plain3dgs => Content::Plain(PlainGaussians::read_sections(&container, count, header.sh_degree)?),
+        BaseKind::Plain3dgs => {
+            Content::Plain(Box::new(PlainGaussians::read_sections(&container, count, header.sh_degree)?))
+        }
         BaseKind::Anchors => {
             Content::Anchors(Box::new(QuantizedAnchors::read_sections(&container, count, bytes.len())?))
         }
