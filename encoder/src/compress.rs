@@ -243,10 +243,19 @@ fn write_selected(
                 return Ok(if other.len() < bytes.len() { other } else { bytes });
             }
             Ok(bytes) => return Ok(bytes),
-            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth < MAX_DEPTH => finer += 1,
+            // (With classes `POSN`'s grid is coarser than the one refined: the refined one
+            // is what reaches the deepest grid.)
+            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth + refine_of(&content) < MAX_DEPTH => {
+                finer += 1
+            }
             Err(e) => return Err(e.into()),
         }
     }
+}
+
+/// Levels the importance classes refine `POSN`'s grid by (0 without classes).
+fn refine_of(content: &PlainGaussians) -> u8 {
+    content.classes.as_ref().map_or(0, |c| c.refine)
 }
 
 fn check_finite(g: &Gaussians) -> Result<(), CompressError> {
@@ -383,7 +392,6 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
         positions,
         // POSN's grid: `refine` levels coarser (the cell times a power of two, exact).
         grid: PositionGrid { cell: fine.cell * (1u32 << refine) as f32, depth: fine.depth - refine, ..fine },
-        classes: classes.clone(),
         scale_step: s.log_scale_step,
         log_scales: (log_scales.iter().enumerate())
             .map(|(r, l)| l.map(|v| quantize_value(v, step(r, s.log_scale_step))))
@@ -404,5 +412,6 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
         band_steps: s.band_steps[..degree as usize].to_vec(),
         sh_rest,
         colour_differences: false,
+        classes,
     }
 }

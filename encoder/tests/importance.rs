@@ -117,3 +117,22 @@ fn weights_of_the_wrong_length_are_refused() {
     let coding = Coding { settings: &settings, weights: Some(&short), prune_faint: false };
     assert!(compress_to_size(&g, coding, &context, None, usize::MAX).is_err());
 }
+
+#[test]
+fn more_gaussians_in_one_place_than_a_cell_holds_is_an_error_not_a_hang() {
+    // 300 copies of one Gaussian: no grid separates them (a cell holds at most 255), with the
+    // classes' coarser POSN grid as without.
+    let mut g = Gaussians::with_degree(0);
+    for _ in 0..300 {
+        g.push([0.0, 0.0, 3.0], [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 2.0, &[0.3; 3]);
+    }
+    g.push([1.0, 1.0, 4.0], [-3.0; 3], [1.0, 0.0, 0.0, 0.0], 2.0, &[0.3; 3]);
+    let weights: Vec<f32> = (0..g.len()).map(|i| 1.0 + i as f32).collect();
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let settings = QuantizerSettings::for_quality(10);
+    for w in [None, Some(&weights[..])] {
+        let coding = Coding { settings: &settings, weights: w, prune_faint: false };
+        let e = compress_to_size(&g, coding, &context, None, usize::MAX).err().expect("an error");
+        assert!(e.to_string().contains("share one grid cell"), "{e}");
+    }
+}
