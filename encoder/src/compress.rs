@@ -30,10 +30,10 @@ pub struct QuantizerSettings {
     pub dc_step: f32,
     /// Steps of SH bands 1, 2, 3.
     pub band_steps: [f32; 3],
-    /// Importance classes, when the Gaussians' weights are known: 2 to 13 (none below 2); the
-    /// coarsest class's steps are those of quality 0, so that no class leaves the range where
-    /// a step's error stays small against the value (a scale step beyond that turns a faint
-    /// Gaussian into a large one).
+    /// Importance classes, when the Gaussians' weights are known: 2 to 7 (none below 2); the
+    /// coarsest class's steps are about those of quality 0, so that no class leaves the range
+    /// where a step's error stays small against the value (a scale step beyond that turns a
+    /// faint Gaussian into a large one).
     pub importance_classes: u8,
     /// With importance weights and pruning: Gaussians whose weight is below this times the
     /// reference weight are dropped, `2^(4 - quality)`. Their error when missing is about their
@@ -59,7 +59,7 @@ impl QuantizerSettings {
             opacity_step: 0.4 * factor,
             dc_step: 0.16 * factor,
             band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
-            importance_classes: (q as u8 + 1).min(importance::MAX_CLASSES),
+            importance_classes: ((q as u8 + 1) / 2 + 1).min(importance::MAX_CLASSES),
             faint_weight: sqrt2_power(2 * (4 - q)),
         }
     }
@@ -352,7 +352,7 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
     let count = s.importance_classes;
     let classes = coding.weights.filter(|_| count >= 2).map(|w| {
         let weights: Vec<f32> = keep.iter().map(|&i| w[i]).collect();
-        importance::classes(&weights, reference, count, ((count - 1) / 2).min(fine.depth - 1))
+        importance::classes(&weights, reference, count, (count - 1).min(fine.depth - 1))
     });
     // Row `r` (Gaussian `keep[r]`)'s step for a block of step `step`, as the decoder takes it.
     let step = |r: usize, step: f32| classes.as_ref().map_or(step, |c| c.step(r, step));

@@ -100,8 +100,9 @@ fn quality_steps_are_exact_powers_of_sqrt2() {
         assert_eq!(s.band_steps[2], default.band_steps[2] * expected, "quality {q}");
         let bits = [10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15, 16][usize::from(q)];
         assert_eq!(s.position_bits, bits, "quality {q}");
-        // Importance classes: as many as make the coarsest class quality 0's steps, at most 13.
-        assert_eq!(s.importance_classes, (q + 1).min(13), "quality {q}");
+        // Importance classes, a factor 2 apart: as many as make the coarsest class about quality
+        // 0's steps, at most 7.
+        assert_eq!(s.importance_classes, ((q + 1) / 2 + 1).min(7), "quality {q}");
     }
     assert_eq!(QuantizerSettings::for_quality(200), QuantizerSettings::for_quality(12), "clamped");
 }

@@ -35,7 +35,7 @@ fn point(g: &Gaussians, quality: u8, weights: Option<&[f32]>) -> (usize, f64) {
 fn classes_beat_uniform_steps_on_the_views_they_come_from() {
     let g = scene();
     let weights = blend_weights(&g, &[camera()], &RenderOptions::default());
-    let uniform: Vec<(usize, f64)> = (2..=10).map(|q| point(&g, q, None)).collect();
+    let uniform: Vec<(usize, f64)> = (0..=12).map(|q| point(&g, q, None)).collect();
     // The uniform curve's PSNR at `bytes`, linear between its points.
     let at = |bytes: usize| {
         let w = uniform.windows(2).find(|w| w[0].0 <= bytes && bytes <= w[1].0).expect("inside the curve");
@@ -44,7 +44,7 @@ fn classes_beat_uniform_steps_on_the_views_they_come_from() {
     };
     for q in [4u8, 6, 8] {
         let (bytes, p) = point(&g, q, Some(&weights));
-        // Measured: 2 to 4 dB above the curve at these qualities.
+        // Measured: 3.6 to 4.8 dB above the curve at these qualities.
         assert!(p > at(bytes) + 1.0, "quality {q}: {bytes} bytes at {p:.2} dB, uniform steps {:.2} dB", at(bytes));
     }
 }
@@ -72,9 +72,9 @@ fn unseen_gaussians_take_the_coarsest_class() {
     .unwrap();
     let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
     let classes = content.classes.as_ref().expect("classes");
-    assert_eq!(classes.factors.len(), 9);
+    assert_eq!(classes.factors.len(), 5);
     // (The decoded order is the octree's, so count rather than match.)
-    let last = classes.of.iter().filter(|&&k| k == 8).count();
+    let last = classes.of.iter().filter(|&&k| k == 4).count();
     assert!(last >= unseen, "{last} Gaussians in the last class, {unseen} unseen");
     // Pruned instead: gone, and counted.
     let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: true };
@@ -83,7 +83,7 @@ fn unseen_gaussians_take_the_coarsest_class() {
     assert_eq!(pruned.decoded.header.gaussian_count as usize, g.len() - pruned.faint);
     let means = &pruned.decoded.scene.plain_gaussians().unwrap().means;
     assert!(means.iter().all(|m| m[2] > 0.0), "a Gaussian behind the camera was kept");
-    // Quality 2 allows classes 0 to 2 only: the coarsest steps are quality 0's.
+    // Quality 2 allows classes 0 and 1 only: the coarsest steps are about quality 0's.
     let settings = QuantizerSettings::for_quality(2);
     let c = compress_to_size(
         &g,
@@ -94,7 +94,7 @@ fn unseen_gaussians_take_the_coarsest_class() {
     )
     .unwrap();
     let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
-    assert_eq!(content.classes.as_ref().unwrap().factors.len(), 3);
+    assert_eq!(content.classes.as_ref().unwrap().factors.len(), 2);
     let settings = QuantizerSettings::for_quality(0);
     let c = compress_to_size(
         &g,
