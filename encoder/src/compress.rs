@@ -59,7 +59,7 @@ impl QuantizerSettings {
             opacity_step: 0.4 * factor,
             dc_step: 0.16 * factor,
             band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
-            importance_classes: ((q as u8 + 1) / 2 + 1).min(importance::MAX_CLASSES),
+            importance_classes: ((q as u8).div_ceil(2) + 1).min(importance::MAX_CLASSES),
             faint_weight: sqrt2_power(2 * (4 - q)),
         }
     }

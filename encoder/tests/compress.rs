@@ -102,7 +102,7 @@ fn quality_steps_are_exact_powers_of_sqrt2() {
         assert_eq!(s.position_bits, bits, "quality {q}");
         // Importance classes, a factor 2 apart: as many as make the coarsest class about quality
         // 0's steps, at most 7.
-        assert_eq!(s.importance_classes, ((q + 1) / 2 + 1).min(7), "quality {q}");
+        assert_eq!(s.importance_classes, (q.div_ceil(2) + 1).min(7), "quality {q}");
     }
     assert_eq!(QuantizerSettings::for_quality(200), QuantizerSettings::for_quality(12), "clamped");
 }
