@@ -60,52 +60,30 @@ fn unseen_gaussians_take_the_coarsest_class() {
     let weights = blend_weights(&g, &[camera()], &RenderOptions::default());
     let unseen = weights.iter().filter(|&&w| w == 0.0).count();
     assert!(unseen >= 200, "only {unseen} Gaussians unseen");
-    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
-    let settings = QuantizerSettings::for_quality(8);
-    let c = compress_to_size(
-        &g,
-        Coding { settings: &settings, weights: Some(&weights), prune_faint: false },
-        &context,
-        None,
-        usize::MAX,
-    )
-    .unwrap();
-    let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
-    let classes = content.classes.as_ref().expect("classes");
+    let compressed = |quality: u8, prune_faint: bool| {
+        let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+        let settings = QuantizerSettings::for_quality(quality);
+        let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint };
+        compress_to_size(&g, coding, &context, None, usize::MAX).unwrap()
+    };
+    let classes_at = |quality: u8| match compressed(quality, false).decoded.content {
+        Content::Plain(content) => content.classes,
+        Content::Anchors(_) => panic!("not a plain stream"),
+    };
+    let classes = classes_at(8).expect("classes");
     assert_eq!(classes.factors.len(), 5);
     // (The decoded order is the octree's, so count rather than match.)
     let last = classes.of.iter().filter(|&&k| k == 4).count();
     assert!(last >= unseen, "{last} Gaussians in the last class, {unseen} unseen");
     // Pruned instead: gone, and counted.
-    let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: true };
-    let pruned = compress_to_size(&g, coding, &context, None, usize::MAX).unwrap();
+    let pruned = compressed(8, true);
     assert!(pruned.faint >= unseen && pruned.invisible == 0, "{} faint, {unseen} unseen", pruned.faint);
     assert_eq!(pruned.decoded.header.gaussian_count as usize, g.len() - pruned.faint);
     let means = &pruned.decoded.scene.plain_gaussians().unwrap().means;
     assert!(means.iter().all(|m| m[2] > 0.0), "a Gaussian behind the camera was kept");
     // Quality 2 allows classes 0 and 1 only: the coarsest steps are about quality 0's.
-    let settings = QuantizerSettings::for_quality(2);
-    let c = compress_to_size(
-        &g,
-        Coding { settings: &settings, weights: Some(&weights), prune_faint: false },
-        &context,
-        None,
-        usize::MAX,
-    )
-    .unwrap();
-    let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
-    assert_eq!(content.classes.as_ref().unwrap().factors.len(), 2);
-    let settings = QuantizerSettings::for_quality(0);
-    let c = compress_to_size(
-        &g,
-        Coding { settings: &settings, weights: Some(&weights), prune_faint: false },
-        &context,
-        None,
-        usize::MAX,
-    )
-    .unwrap();
-    let Content::Plain(content) = &c.decoded.content else { panic!("not a plain stream") };
-    assert!(content.classes.is_none(), "quality 0 has one class: no IMPC");
+    assert_eq!(classes_at(2).expect("classes").factors.len(), 2);
+    assert!(classes_at(0).is_none(), "quality 0 has one class: no IMPC");
 }
 
 #[test]

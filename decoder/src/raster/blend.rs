@@ -55,6 +55,54 @@ pub struct Band<'a> {
     pub last_contributor: &'a mut [u32],
 }
 
+/// Walks tile `t`'s splats front to back over its pixels with the blending decisions (alpha
+/// from [`splat_alpha`], the stop before the transmittance falls to its minimum), calling
+/// `blend(k, splat, p, alpha, T)` for each splat blended into a pixel (`k` its position in the
+/// tile's list, `p` the pixel within the tile, row by row, `T` the transmittance before it),
+/// and returns every pixel's final transmittance.
+fn walk_tile(
+    bins: &TileBins,
+    t: usize,
+    splats: &[Splat],
+    options: &RenderOptions,
+    mut blend: impl FnMut(usize, &Splat, usize, f32, f32),
+) -> [f32; TILE_PIXELS] {
+    let [x0, x1, y0, y1] = bins.tile_rect(t);
+    let tw = (x1 - x0) as usize;
+    let mut trans = [1.0f32; TILE_PIXELS];
+    let mut done = [false; TILE_PIXELS];
+    let mut remaining = tw * (y1 - y0) as usize;
+    let mut list = bins.splats(t, splats, ListOrder::FrontToBack);
+    'tile: while let Some(block) = list.next_block() {
+        for &(k, ref s) in block {
+            if remaining == 0 {
+                break 'tile;
+            }
+            let [bx0, bx1, by0, by1] = s.bbox;
+            for py in by0.max(y0)..by1.min(y1) {
+                let dy = s.mean[1] - (py as f32 + 0.5);
+                for px in bx0.max(x0)..bx1.min(x1) {
+                    let p = (py - y0) as usize * tw + (px - x0) as usize;
+                    if done[p] {
+                        continue;
+                    }
+                    let dx = s.mean[0] - (px as f32 + 0.5);
+                    let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
+                    let next = trans[p] * (1.0 - alpha);
+                    if next <= options.transmittance_min {
+                        done[p] = true;
+                        remaining -= 1;
+                        continue;
+                    }
+                    blend(k, s, p, alpha, trans[p]);
+                    trans[p] = next;
+                }
+            }
+        }
+    }
+    trans
+}
+
 /// Blends tile row `ty` into `band`. Pixel coordinates are the image's, whatever the window,
 /// so a window's pixels are bit-identical to the same pixels of the whole image.
 pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOptions, band: Band) {
@@ -63,45 +111,17 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
         let t = (ty * bins.tiles_x + tx) as usize;
         let [x0, x1, y0, y1] = bins.tile_rect(t);
         let tw = (x1 - x0) as usize;
-        let mut trans = [1.0f32; TILE_PIXELS];
         let mut rgb = [[0.0f32; 3]; TILE_PIXELS];
         let mut depth = [0.0f32; TILE_PIXELS];
         let mut last = [0u32; TILE_PIXELS];
-        let mut done = [false; TILE_PIXELS];
-        let mut remaining = tw * (y1 - y0) as usize;
-        let mut list = bins.splats(t, splats, ListOrder::FrontToBack);
-        'tile: while let Some(block) = list.next_block() {
-            for &(k, ref s) in block {
-                if remaining == 0 {
-                    break 'tile;
-                }
-                let [bx0, bx1, by0, by1] = s.bbox;
-                for py in by0.max(y0)..by1.min(y1) {
-                    let dy = s.mean[1] - (py as f32 + 0.5);
-                    for px in bx0.max(x0)..bx1.min(x1) {
-                        let p = (py - y0) as usize * tw + (px - x0) as usize;
-                        if done[p] {
-                            continue;
-                        }
-                        let dx = s.mean[0] - (px as f32 + 0.5);
-                        let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
-                        let next = trans[p] * (1.0 - alpha);
-                        if next <= options.transmittance_min {
-                            done[p] = true;
-                            remaining -= 1;
-                            continue;
-                        }
-                        let weight = alpha * trans[p];
-                        for c in 0..3 {
-                            rgb[p][c] += s.color[c] * weight;
-                        }
-                        depth[p] += s.depth * weight;
-                        trans[p] = next;
-                        last[p] = k as u32 + 1;
-                    }
-                }
+        let trans = walk_tile(bins, t, splats, options, |k, s, p, alpha, trans| {
+            let weight = alpha * trans;
+            for c in 0..3 {
+                rgb[p][c] += s.color[c] * weight;
             }
-        }
+            depth[p] += s.depth * weight;
+            last[p] = k as u32 + 1;
+        });
         for py in y0..y1 {
             for px in x0..x1 {
                 let p = (py - y0) as usize * tw + (px - x0) as usize;
@@ -126,39 +146,7 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
 pub fn splat_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions, gaussians: usize) -> Vec<f32> {
     let mut weights = vec![0.0f32; gaussians];
     for t in 0..(bins.tiles_x * bins.tiles_y) as usize {
-        let [x0, x1, y0, y1] = bins.tile_rect(t);
-        let tw = (x1 - x0) as usize;
-        let mut trans = [1.0f32; TILE_PIXELS];
-        let mut done = [false; TILE_PIXELS];
-        let mut remaining = tw * (y1 - y0) as usize;
-        let mut list = bins.splats(t, splats, ListOrder::FrontToBack);
-        'tile: while let Some(block) = list.next_block() {
-            for (_, s) in block {
-                if remaining == 0 {
-                    break 'tile;
-                }
-                let [bx0, bx1, by0, by1] = s.bbox;
-                for py in by0.max(y0)..by1.min(y1) {
-                    let dy = s.mean[1] - (py as f32 + 0.5);
-                    for px in bx0.max(x0)..bx1.min(x1) {
-                        let p = (py - y0) as usize * tw + (px - x0) as usize;
-                        if done[p] {
-                            continue;
-                        }
-                        let dx = s.mean[0] - (px as f32 + 0.5);
-                        let Some(AlphaSample { alpha, .. }) = splat_alpha(s, dx, dy, options) else { continue };
-                        let next = trans[p] * (1.0 - alpha);
-                        if next <= options.transmittance_min {
-                            done[p] = true;
-                            remaining -= 1;
-                            continue;
-                        }
-                        weights[s.index as usize] += alpha * trans[p];
-                        trans[p] = next;
-                    }
-                }
-            }
-        }
+        walk_tile(bins, t, splats, options, |_, s, _, alpha, trans| weights[s.index as usize] += alpha * trans);
     }
     weights
 }
