@@ -16,7 +16,7 @@ use crate::size_fit::{Fit, most_important_fitting};
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
 /// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
 pub const DEFAULT_QUALITY: u8 = 5;
-pub const MAX_QUALITY: u8 = 12;
+pub const MAX_QUALITY: u8 = 14;
 
 /// Quantization choices of the plain-3DGS coder.
 #[derive(Debug, Clone, PartialEq)]

@@ -98,13 +98,13 @@ fn quality_steps_are_exact_powers_of_sqrt2() {
         let expected = 2f32.powi(k.div_euclid(2)) * if k.rem_euclid(2) == 1 { std::f32::consts::SQRT_2 } else { 1.0 };
         assert_eq!(s.log_scale_step, default.log_scale_step * expected, "quality {q}");
         assert_eq!(s.band_steps[2], default.band_steps[2] * expected, "quality {q}");
-        let bits = [10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15, 16][usize::from(q)];
+        let bits = [10, 10, 11, 11, 12, 12, 13, 13, 14, 14, 15, 15, 16, 16, 17][usize::from(q)];
         assert_eq!(s.position_bits, bits, "quality {q}");
         // Importance classes, a factor 2 apart: as many as make the coarsest class about quality
         // 0's steps, at most 7.
         assert_eq!(s.importance_classes, (q.div_ceil(2) + 1).min(7), "quality {q}");
     }
-    assert_eq!(QuantizerSettings::for_quality(200), QuantizerSettings::for_quality(12), "clamped");
+    assert_eq!(QuantizerSettings::for_quality(200), QuantizerSettings::for_quality(14), "clamped");
 }
 
 /// The same model gives the same bytes whatever the number of threads (DESIGN.md section 5).

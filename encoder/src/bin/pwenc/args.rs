@@ -75,7 +75,7 @@ pub(crate) struct EncodeArgs {
     /// Write the stream here.
     #[arg(short, long)]
     output: Option<PathBuf>,
-    /// Size/quality knob of the stream, 0 (smallest) to 12 (most faithful); each step scales
+    /// Size/quality knob of the stream, 0 (smallest) to 14 (most faithful); each step scales
     /// every quantization step by 1/sqrt(2).
     #[arg(long, default_value_t = DEFAULT_QUALITY, value_parser = clap::value_parser!(u8).range(0..=MAX_QUALITY as i64))]
     quality: u8,
