@@ -186,9 +186,14 @@ pub fn compress_to_size(
         visible.retain(|&i| w[i] > 0.0 && w[i] >= floor);
     }
     let faint = g.len() - invisible - visible.len();
+    // Most important first: by importance weight when there are weights (what shows in views),
+    // else by opacity times area.
     let rank = || {
         let mut ranked = visible.clone();
-        ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b)));
+        match coding.weights {
+            Some(w) => ranked.sort_by(|&a, &b| w[b].total_cmp(&w[a]).then(a.cmp(&b))),
+            None => ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b))),
+        }
         ranked
     };
     let write = |keep: Option<&[usize]>| {

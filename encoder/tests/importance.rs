@@ -81,6 +81,16 @@ fn unseen_gaussians_take_the_coarsest_class() {
     assert_eq!(pruned.decoded.header.gaussian_count as usize, g.len() - pruned.faint);
     let means = &pruned.decoded.scene.plain_gaussians().unwrap().means;
     assert!(means.iter().all(|m| m[2] > 0.0), "a Gaussian behind the camera was kept");
+    // A target size drops the least weighty first: the unseen ones go before any seen one
+    // (ranked by opacity times area instead, these bright ones would stay).
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let settings = QuantizerSettings::for_quality(8);
+    let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: false };
+    let target = compressed(8, false).bytes.len() * 9 / 10;
+    let fitted = compress_to_size(&g, coding, &context, None, target).unwrap();
+    assert!(fitted.pruned >= unseen, "{} pruned, {unseen} unseen", fitted.pruned);
+    let means = &fitted.decoded.scene.plain_gaussians().unwrap().means;
+    assert!(means.iter().all(|m| m[2] > 0.0), "an unseen Gaussian was kept");
     // Quality 2 allows classes 0 and 1 only: the coarsest steps are about quality 0's.
     assert_eq!(classes_at(2).expect("classes").factors.len(), 2);
     assert!(classes_at(0).is_none(), "quality 0 has one class: no IMPC");
