@@ -5,9 +5,9 @@
 //! weighted squared error for the bytes (measured: summing over the views codes guitar about
 //! 2% smaller at equal PSNR than taking each Gaussian's largest view).
 //!
-//! The views look at the scene's center from the directions of a cube's faces, edges and
-//! corners on or above the horizon, so that no way round is favoured, and they need no
-//! trigonometry: with `+ - * / sqrt` only, the classes, and so the stream,
+//! The views look at the scene's center from directions spread over the upper half of the
+//! sphere (the points on a grid cube's surface), so that no way round is favoured, and they
+//! need no trigonometry: with `+ - * / sqrt` only, the classes, and so the stream,
 //! are the same on every machine.
 
 use glam::Vec3;
@@ -29,13 +29,17 @@ pub const MAX_CLASSES: u8 = 7;
 /// The weight that class 0 starts at: this quantile (in percent) of all the weights.
 const REFERENCE_PERCENTILE: usize = 90;
 
-/// The 26 unit directions from a cube's center to its faces, edges and corners.
+/// The unit directions from the center of a 5 x 5 x 5 grid of points to the 98 points on its
+/// surface: spread over the sphere about evenly (within a factor 2 of each other in angle).
+/// More directions than a cube's 26 show more of what occludes what: on biker, 57 views on or
+/// above the horizon code about 7% smaller at equal PSNR than 17; 121 views (a 7 x 7 x 7
+/// grid) gain nothing more.
 fn directions() -> Vec<Vec3> {
-    let mut out = Vec::with_capacity(26);
-    for x in -1i8..=1 {
-        for y in -1i8..=1 {
-            for z in -1i8..=1 {
-                if (x, y, z) != (0, 0, 0) {
+    let mut out = Vec::with_capacity(98);
+    for x in -2i8..=2 {
+        for y in -2i8..=2 {
+            for z in -2i8..=2 {
+                if x.abs().max(y.abs()).max(z.abs()) == 2 {
                     out.push(Vec3::new(f32::from(x), f32::from(y), f32::from(z)).normalize());
                 }
             }
@@ -45,8 +49,8 @@ fn directions() -> Vec<Vec3> {
 }
 
 /// Cameras of `size` pixels and a 60-degree field of view at the scene's scale from its
-/// center, looking at it from those of the 26 [`directions`] on or above the horizon of `up`
-/// (17 when `up` is an axis): where a viewer walks around a scene, not from under its floor.
+/// center, looking at it from those of the 98 [`directions`] on or above the horizon of `up`
+/// (57 when `up` is an axis): where a viewer walks around a scene, not from under its floor.
 pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camera>, CameraError> {
     let up = up.normalize_or_zero();
     if up == Vec3::ZERO {
@@ -125,8 +129,8 @@ mod tests {
     fn the_views_surround_the_center_at_the_scene_scale() {
         let context = StreamContext { center: [1.0, 2.0, 3.0], scale: 4.0, background: [0.0; 3] };
         let cams = cameras(&context, Vec3::NEG_Y, 64).unwrap();
-        assert_eq!(cams.len(), 17);
-        let mean = cams.iter().map(|c| c.center()).sum::<Vec3>() / 17.0;
+        assert_eq!(cams.len(), 57);
+        let mean = cams.iter().map(|c| c.center()).sum::<Vec3>() / 57.0;
         // The ring on the horizon and the upper half: the mean is above the center (-y).
         assert!((mean.x - 1.0).abs() < 1e-5 && (mean.z - 3.0).abs() < 1e-5 && mean.y < 2.0 - 1.0, "{mean}");
         assert!(cams.iter().all(|c| c.center().y <= 2.0 + 1e-5), "a view from below");

@@ -146,7 +146,7 @@ fn compresses_an_imported_ply() {
     let args = ["--from", &path("in.ply"), "-o", &path("classes.pwb"), "--quality", "7", "--importance-classes"];
     let out = pwenc(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 17 views"));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 57 views"));
     let classes = std::fs::read(path("classes.pwb")).unwrap();
     let container = pwgs_bitstream::Container::parse(&classes).unwrap();
     assert!(container.section(pwgs_decoder::stream::classes::CLASSES).is_some());
