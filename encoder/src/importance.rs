@@ -32,8 +32,8 @@ const REFERENCE_PERCENTILE: usize = 90;
 /// The unit directions from the center of a 5 x 5 x 5 grid of points to the 98 points on its
 /// surface: spread over the sphere about evenly (within a factor 2 of each other in angle).
 /// More directions than a cube's 26 show more of what occludes what: on biker, 57 views on or
-/// above the horizon code about 7% smaller at equal PSNR than 17; 121 views (a 7 x 7 x 7
-/// grid) gain nothing more.
+/// above the horizon code about 6% smaller at equal PSNR than 17 (guitar 1-2%); 121 views
+/// (a 7 x 7 x 7 grid) gain nothing more.
 fn directions() -> Vec<Vec3> {
     let mut out = Vec::with_capacity(98);
     for x in -2i8..=2 {
