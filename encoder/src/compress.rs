@@ -250,17 +250,10 @@ fn write_selected(
             Ok(bytes) => return Ok(bytes),
             // (With classes `POSN`'s grid is coarser than the one refined: the refined one
             // is what reaches the deepest grid.)
-            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth + refine_of(&content) < MAX_DEPTH => {
-                finer += 1
-            }
+            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth + content.refine() < MAX_DEPTH => finer += 1,
             Err(e) => return Err(e.into()),
         }
     }
-}
-
-/// Levels the importance classes refine `POSN`'s grid by (0 without classes).
-fn refine_of(content: &PlainGaussians) -> u8 {
-    content.classes.as_ref().map_or(0, |c| c.refine)
 }
 
 fn check_finite(g: &Gaussians) -> Result<(), CompressError> {

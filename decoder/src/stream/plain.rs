@@ -110,6 +110,11 @@ impl PlainGaussians {
         (sh_coeff_count(self.sh_degree) - 1) * 3
     }
 
+    /// Levels the importance classes refine `POSN`'s grid by (0 without classes).
+    pub fn refine(&self) -> u8 {
+        self.classes.as_ref().map_or(0, |c| c.refine)
+    }
+
     /// Whether the colours can be coded as differences: every difference within the values'
     /// limit.
     pub fn colour_differences_fit(&self) -> bool {
@@ -130,7 +135,7 @@ impl PlainGaussians {
                 sh.push(q as f32 * step(i, self.band_steps[sh_band(1 + j / 3) - 1]));
             }
         }
-        let refine = self.classes.as_ref().map_or(0, |c| c.refine);
+        let refine = self.refine();
         Gaussians {
             means: self.positions.iter().map(|&q| self.grid.refined_position(q, refine)).collect(),
             log_scales: (0..n).map(|i| self.log_scales[i].map(|v| v as f32 * step(i, self.scale_step))).collect(),
@@ -143,7 +148,7 @@ impl PlainGaussians {
 
     /// The sections of this content, attributes in the order the octree lists positions.
     pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
-        let refine = self.classes.as_ref().map_or(0, |c| c.refine);
+        let refine = self.refine();
         let coarse: Vec<[u32; 3]> = self.positions.iter().map(|q| q.map(|c| c >> refine)).collect();
         let (positions, order) = write_positions(&self.grid, &coarse)?;
         let mut sections = vec![(POSITIONS, positions)];
@@ -378,11 +383,16 @@ pub(super) fn write_block(
     w.extend(&coder.finish());
 }
 
-/// A block's step field: finite and positive, and small enough that every quantized value
-/// (below 2^24 in magnitude) times it stays finite.
+/// Whether a step is usable: positive, and small enough that every quantized value (below
+/// 2^24 in magnitude) times it stays finite.
+fn usable_step(s: f32) -> bool {
+    s > 0.0 && (s * MAX_MAGNITUDE as f32).is_finite()
+}
+
+/// A block's step field: finite and [usable](usable_step).
 pub(super) fn read_step(r: &mut FieldReader) -> Result<f32, FieldError> {
     let s = r.f32("step")?;
-    match s > 0.0 && (s * MAX_MAGNITUDE as f32).is_finite() {
+    match usable_step(s) {
         true => Ok(s),
         false => Err(r.error("step", format!("{s} is not positive or too large"))),
     }
@@ -414,8 +424,7 @@ pub(super) fn read_block(
     let step_values = (0..steps).map(|_| read_step(&mut r)).collect::<Result<Vec<f32>, FieldError>>()?;
     let factors = rows.classes.map_or(&[][..], |c| &c.factors);
     for (&s, (k, &f)) in step_values.iter().flat_map(|s| std::iter::repeat(s).zip(factors.iter().enumerate())) {
-        let scaled = s * f;
-        if !(scaled > 0.0 && (scaled * MAX_MAGNITUDE as f32).is_finite()) {
+        if !usable_step(s * f) {
             let problem = format!("{s} times class {k}'s factor {f} is not positive or too large");
             return Err(r.error("step", problem).into());
         }
