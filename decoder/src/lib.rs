@@ -20,3 +20,14 @@ pub mod scene;
 pub mod splat_file;
 pub mod stream;
 pub mod wrapper;
+
+/// `println!` for the command-line programs' messages, except that a closed standard output
+/// (`pwdec info s.pwb | head -1`, `pwenc ... | head`) is not an error: the job goes on and
+/// writes its files, where `println!` would panic halfway.
+#[macro_export]
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}

@@ -14,16 +14,17 @@ use crate::rotation_frame::canonical_frame;
 use crate::size_fit::{Fit, most_important_fitting};
 
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's
-/// square (steps shrink by sqrt(2)) and refines the position grid by half a bit.
+/// square (steps shrink by sqrt(2)) and refines the position grid by a bit every second step.
 pub const DEFAULT_QUALITY: u8 = 5;
 pub const MAX_QUALITY: u8 = 14;
 
 /// Quantization choices of the plain-3DGS coder.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct QuantizerSettings {
     /// Grid cells along the robust extent of the scene (the central 98% of positions) are
-    /// `2^position_bits`.
+    /// `2^position_bits`, times sqrt(2) with `position_half_bit`.
     pub position_bits: u8,
+    pub position_half_bit: bool,
     pub log_scale_step: f32,
     pub rotation_step: f32,
     pub opacity_step: f32,
@@ -35,6 +36,10 @@ pub struct QuantizerSettings {
     /// where a step's error stays small against the value (a scale step beyond that turns a
     /// faint Gaussian into a large one).
     pub importance_classes: u8,
+    /// Factor between the steps of successive importance classes, in sqrt(2)s: 2 (a factor 2,
+    /// steps growing as the inverse square root of the weight, which minimizes the weighted
+    /// squared error for the bytes when the error is the weight times the step squared).
+    pub class_spread: u8,
     /// With importance weights and pruning: Gaussians whose weight is below this times the
     /// reference weight are dropped, `2^(4 - quality)`. Their error when missing is about their
     /// weight, and the error a kept Gaussian's quantization makes, whatever its class, about the
@@ -54,12 +59,14 @@ impl QuantizerSettings {
         Self {
             // 12 + (q - d) / 2, halves rounded up.
             position_bits: (25 + q - d).div_euclid(2) as u8,
+            position_half_bit: false,
             log_scale_step: 0.16 * factor,
             rotation_step: 0.016 * factor,
             opacity_step: 0.4 * factor,
             dc_step: 0.16 * factor,
             band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
             importance_classes: ((q as u8).div_ceil(2) + 1).min(importance::MAX_CLASSES),
+            class_spread: 2,
             faint_weight: sqrt2_power(2 * (4 - q)),
         }
     }
@@ -290,7 +297,7 @@ fn visible_after_quantization(g: &Gaussians, opacity_step: f32) -> Vec<usize> {
 
 /// The grid: origin at the minimum corner, cells sized from the robust extent, deep enough to
 /// hold every position (coarser cells if 24 bits cannot reach the farthest outlier).
-fn choose_grid(g: &Gaussians, visible: &[usize], bits: u8) -> PositionGrid {
+fn choose_grid(g: &Gaussians, visible: &[usize], (bits, half_bit): (u8, bool)) -> PositionGrid {
     if visible.is_empty() {
         return PositionGrid { origin: [0.0; 3], cell: 1.0, depth: 1 };
     }
@@ -306,7 +313,8 @@ fn choose_grid(g: &Gaussians, visible: &[usize], bits: u8) -> PositionGrid {
         origin[a] = v[0];
     }
     let robust = if robust > 0.0 { robust } else { full.max(1e-6) };
-    let mut cell = robust / f64::from(1u32 << bits);
+    let cells = f64::from(1u32 << bits) * if half_bit { std::f64::consts::SQRT_2 } else { 1.0 };
+    let mut cell = robust / cells;
     let mut depth = 1u8;
     while depth < MAX_DEPTH && f64::from(1u32 << depth) * cell <= full {
         depth += 1;
@@ -346,11 +354,11 @@ fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
 /// importance classes measured from `reference` when `coding` has weights.
 fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), finer: u8) -> PlainGaussians {
     let s = coding.settings;
-    let fine = choose_grid(g, keep, s.position_bits.saturating_add(finer));
+    let fine = choose_grid(g, keep, (s.position_bits.saturating_add(finer), s.position_half_bit));
     let count = s.importance_classes;
     let classes = coding.weights.filter(|_| count >= 2).map(|w| {
         let weights: Vec<f32> = keep.iter().map(|&i| w[i]).collect();
-        importance::classes(&weights, reference, count, (count - 1).min(fine.depth - 1))
+        importance::classes(&weights, reference, (count, s.class_spread), (count - 1).min(fine.depth - 1))
     });
     // Row `r` (Gaussian `keep[r]`)'s step for a block of step `step`, as the decoder takes it.
     let step = |r: usize, step: f32| classes.as_ref().map_or(step, |c| c.step(r, step));

@@ -11,6 +11,7 @@ use anyhow::{Context, Result};
 use burn::tensor::Device;
 use pwgs_dataset::View;
 use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_decoder::say;
 use pwgs_decoder::scene::Scene;
 use serde::Serialize;
 
@@ -134,7 +135,7 @@ impl<'a> Evaluation<'a> {
     pub fn run(&self, scene: &Scene, views: &[View]) -> Result<(Vec<ViewScore>, MeanScore)> {
         let views = evaluate(scene, views, Some(&self.options.dir), self.suite.as_ref())?;
         for v in &views {
-            println!(
+            say!(
                 "{:<24} PSNR {:6.2} dB  SSIM {:.4}{}  render {:.3} s",
                 v.name,
                 v.psnr,
@@ -144,7 +145,7 @@ impl<'a> Evaluation<'a> {
             );
         }
         let mean = MeanScore::of(&views);
-        println!(
+        say!(
             "mean over {} test views: PSNR {:.2} dB, SSIM {:.4}{}",
             views.len(),
             mean.psnr,

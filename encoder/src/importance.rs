@@ -99,15 +99,16 @@ pub fn reference(weights: &[f32]) -> f32 {
 /// Classes for Gaussians of weights `weights`: class `k` where `reference` over the Gaussian's
 /// weight `w` is about `4^k`: `w * sqrt(2)^(4j - 3) <= reference` for `j = 1 ..= k` (so class
 /// `k` holds the ratios from `2^(2k - 1.5)` up to `2^(2k + 0.5)`), at most `count - 1` (also for
-/// weight 0). Class `k` doubles the steps `k` times (they grow as `w^(-1/2)`) and drops `k`
-/// position levels, at most `max_refine`. Classes above the coarsest one used are left out (at
+/// weight 0). Class `k` multiplies the steps by `sqrt(2)^(spread k)` (with `spread` 2 they
+/// double each class and grow as `w^(-1/2)`) and drops `k` position levels, at most
+/// `max_refine`. Classes above the coarsest one used are left out (at
 /// least 2 remain), and the refinement goes no deeper than the largest drop used: levels every
 /// Gaussian codes cost less in the octree.
 ///
 /// Measured against classes a factor sqrt(2) apart (`w * sqrt(2)^(2j - 1) <= reference`): 2.4%
 /// to 2.9% smaller at equal PSNR on guitar and 3% to 4% on biker, the class symbols costing
 /// about a bit less a Gaussian.
-pub fn classes(weights: &[f32], reference: f32, count: u8, max_refine: u8) -> ImportanceClasses {
+pub fn classes(weights: &[f32], reference: f32, (count, spread): (u8, u8), max_refine: u8) -> ImportanceClasses {
     let thresholds: Vec<f32> = (1..i32::from(count)).map(|j| sqrt2_power(4 * j - 3)).collect();
     let of: Vec<u8> =
         weights.iter().map(|&w| thresholds.iter().filter(|&&t| w * t <= reference).count() as u8).collect();
@@ -115,7 +116,7 @@ pub fn classes(weights: &[f32], reference: f32, count: u8, max_refine: u8) -> Im
     let refine = (used - 1).min(max_refine);
     ImportanceClasses {
         refine,
-        factors: (0..i32::from(used)).map(|k| sqrt2_power(2 * k)).collect(),
+        factors: (0..i32::from(used)).map(|k| sqrt2_power(i32::from(spread) * k)).collect(),
         drops: (0..used).map(|k| k.min(refine)).collect(),
         of,
     }
@@ -148,23 +149,23 @@ mod tests {
         let weights = [8.0, 9.0, 8.0, 5.7, 5.6, 2.9, 2.8, 0.004, 0.0, 8.0];
         assert_eq!(reference(&weights), 8.0);
         assert_eq!(reference(&[]), 0.0);
-        let c = classes(&weights, 8.0, 7, 6);
+        let c = classes(&weights, 8.0, (7, 2), 6);
         // Class 1 from a ratio of 2^0.5 (8 / 5.7 = 1.40 is below, 8 / 5.6 = 1.43 above), class 2
         // from 2^2.5 = 5.66 (8 / 2.9 = 2.76 and 8 / 2.8 = 2.86 are still class 1), 2000 (above
         // 2^10.5 = 1448) and 0 in the last class (6).
         assert_eq!(c.of, vec![0, 0, 0, 0, 1, 1, 1, 6, 6, 0]);
         assert_eq!(c.drops, vec![0, 1, 2, 3, 4, 5, 6]);
         assert_eq!(c.factors, vec![1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0]);
-        assert_eq!(classes(&weights, 8.0, 7, 2).drops, vec![0, 1, 2, 2, 2, 2, 2]);
-        let three = classes(&weights, 8.0, 3, 6);
+        assert_eq!(classes(&weights, 8.0, (7, 2), 2).drops, vec![0, 1, 2, 2, 2, 2, 2]);
+        let three = classes(&weights, 8.0, (3, 2), 6);
         assert_eq!(three.of, vec![0, 0, 0, 0, 1, 1, 1, 2, 2, 0]);
         assert_eq!((three.refine, three.drops), (2, vec![0, 1, 2]));
         // Without the faintest two, classes 2 to 6 are empty: left out, and the refinement
         // stops at class 1's one level.
-        let bright = classes(&weights[..7], 8.0, 7, 6);
+        let bright = classes(&weights[..7], 8.0, (7, 2), 6);
         assert_eq!((bright.factors.len(), bright.refine, bright.drops.clone()), (2, 1, vec![0, 1]));
         // Every Gaussian in class 0: still two classes (SPEC.md 6.5), one level refined.
-        let flat = classes(&[8.0; 5], 8.0, 7, 6);
+        let flat = classes(&[8.0; 5], 8.0, (7, 2), 6);
         assert_eq!((flat.factors.len(), flat.refine), (2, 1));
     }
 }

@@ -16,5 +16,6 @@ pub mod rotation_frame;
 pub mod session;
 pub mod size_fit;
 pub mod splat_op;
+pub mod step_search;
 pub mod synthesis;
 pub mod train;

@@ -186,6 +186,31 @@ fn compresses_an_imported_ply() {
     assert!(!std::path::Path::new(&path("broken.pwb")).exists());
 }
 
+/// `pwenc ... | head -1`: a standard output closed before the job ends is no error; the stream
+/// is written all the same (`println!` would panic at the first message).
+#[test]
+fn a_closed_standard_output_loses_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (model, stream) = (tmp.path().join("in.ply"), tmp.path().join("out.pwb"));
+    let g = pwgs_decoder::random_scene::random_gaussians(
+        &mut pwgs_decoder::random_scene::SplitMix64(4),
+        300,
+        0,
+        [-4.0, -2.5],
+    );
+    pwgs_decoder::ply::write_gaussians(&model, &g).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pwenc"))
+        .args(["--from", model.to_str().unwrap(), "-o", stream.to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap().header.gaussian_count, 300);
+}
+
 #[test]
 fn compares_a_model_with_a_reference_on_an_orbit() {
     let tmp = tempfile::tempdir().unwrap();
@@ -253,6 +278,8 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec![scene, "--orbit", "4"], "--orbit applies to --from-ply"),
         (vec![scene, "--importance-classes"], "--importance-classes applies to --from-ply"),
         (vec!["--from", "m.ply", "-o", "x.pwb", "--prune-faint"], "--importance-classes"),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--search-steps"], "--importance-classes"),
+        (vec![scene, "--search-steps"], "--importance-classes"),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

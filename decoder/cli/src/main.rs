@@ -16,6 +16,7 @@ use pwgs_decoder::atomic_file::write_atomically;
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::camera_json::parse_camera;
 use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::splat_file::{SpzVersion, gaussians_to_spz_bytes};
 use pwgs_decoder::stream;
@@ -142,7 +143,7 @@ fn info(path: &Path) -> Result<()> {
         if let stream::Content::Anchors(a) = &decoded.content
             && let Some(c) = &a.context
         {
-            println!(
+            say!(
                 "context       levels {:?}, plane levels {:?} (2^r cells per axis), 2^{} entries per hashed grid, \
                  {} channels: {} entries; network width {}, steps 2^{} / 2^{}",
                 c.shape.levels,
@@ -163,7 +164,7 @@ fn info(path: &Path) -> Result<()> {
         {
             let counts: Vec<usize> =
                 (0..c.factors.len()).map(|k| c.of.iter().filter(|&&x| usize::from(x) == k).count()).collect();
-            println!(
+            say!(
                 "importance    {} classes, Gaussians per class {counts:?}; position grid {} levels finer than POSN's, \
                  levels dropped per class {:?}",
                 c.factors.len(),
@@ -176,7 +177,7 @@ fn info(path: &Path) -> Result<()> {
         let w = QuantizedSynthesis::read(section.payload, container.minor)
             .with_context(|| format!("{}: bad wrapper section", path.display()))?;
         let c = w.config;
-        println!(
+        say!(
             "wrapper       width {}, noise {}, plücker {}, seed {:#018x}, steps 2^{} / 2^{} ({} parameters)",
             c.width,
             if c.noise { "on" } else { "off" },
@@ -191,21 +192,21 @@ fn info(path: &Path) -> Result<()> {
 }
 
 fn print_info(path: &Path, bytes: &[u8], container: &Container, header: &stream::header::Header) {
-    println!("stream        {} ({} bytes)", path.display(), bytes.len());
-    println!("version       {}.{}", container.major, container.minor);
-    println!("base          {}", header.base.name());
+    say!("stream        {} ({} bytes)", path.display(), bytes.len());
+    say!("version       {}.{}", container.major, container.minor);
+    say!("base          {}", header.base.name());
     match header.base {
-        BaseKind::Plain3dgs => println!("gaussians     {}", header.gaussian_count),
-        BaseKind::Anchors => println!("anchors       {}", header.gaussian_count),
+        BaseKind::Plain3dgs => say!("gaussians     {}", header.gaussian_count),
+        BaseKind::Anchors => say!("anchors       {}", header.gaussian_count),
     }
-    println!("sh degree     {}", header.sh_degree);
-    println!("normalization center {:?}, scale {}", header.center, header.scale);
-    println!("background    {:?}", header.background);
-    println!("sections      (bytes incl. 12 bytes of tag, length and CRC)");
+    say!("sh degree     {}", header.sh_degree);
+    say!("normalization center {:?}, scale {}", header.center, header.scale);
+    say!("background    {:?}", header.background);
+    say!("sections      (bytes incl. 12 bytes of tag, length and CRC)");
     for s in &container.sections {
         let share = 100.0 * (s.payload.len() + SECTION_OVERHEAD) as f64 / bytes.len() as f64;
         let kind = if s.tag.is_critical() { "" } else { "  (optional)" };
-        println!("  {}  {:>10}  {share:5.1}%{kind}", s.tag, s.payload.len() + SECTION_OVERHEAD);
+        say!("  {}  {:>10}  {share:5.1}%{kind}", s.tag, s.payload.len() + SECTION_OVERHEAD);
     }
 }
 
@@ -231,7 +232,7 @@ fn decode(args: DecodeArgs) -> Result<()> {
     }
     let wrapped = !args.no_wrapper;
     if args.hash {
-        println!("{}", scene.attribute_hash());
+        say!("{}", scene.attribute_hash());
     }
     if exports {
         let exported;

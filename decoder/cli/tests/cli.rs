@@ -50,6 +50,20 @@ fn renders_views_exports_ply_and_prints_info() {
     }
 }
 
+/// `pwdec info s.pwb | head -1`: a standard output closed early is no error (no panic).
+#[test]
+fn a_closed_standard_output_is_not_an_error() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pwdec"))
+        .args(["info", vector("stream.pwb").to_str().unwrap()])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
 /// `--export-spz`: the library's SPZ writer on the decoded Gaussians, which the SPZ reader
 /// reads back to the same Gaussians within the format's quantization.
 #[test]

@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_decoder::say;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, MetricSuite, SuiteSettings};
 use pwgs_encoder::metrics::weights::default_dirs;
@@ -130,14 +131,14 @@ fn run(cli: Cli) -> Result<()> {
             settings.insert("log2_sigma".into(), json!(cli.log2_sigma));
         }
         let out = json!({ "settings": settings, "images": images, "mean": record(&means), "count": rows.len() });
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        say!("{}", serde_json::to_string_pretty(&out)?);
     } else {
         let width = rows.iter().map(|(n, _)| n.len()).chain([5]).max().unwrap_or(5);
         let header: String = metrics.iter().map(|m| format!(" {:>10}", m.name())).collect();
-        println!("{:<width$}{header}", "image");
+        say!("{:<width$}{header}", "image");
         for (name, values) in rows.iter().map(|(n, v)| (n.as_str(), v)).chain([("mean", &means)]) {
             let cells: String = values.iter().map(|v| format!(" {v:>10.5}")).collect();
-            println!("{name:<width$}{cells}");
+            say!("{name:<width$}{cells}");
         }
     }
     Ok(())

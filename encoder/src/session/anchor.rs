@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_decoder::say;
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::{self, Decoded};
 use serde::Serialize;
@@ -146,7 +147,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     let voxel = job.relative_voxel * data.normalization.scale;
     let shape = AnchorShape { feature_dim: job.feature_dim, offsets_per_anchor: job.offsets_per_anchor, voxel };
     let (initial, grid) = initial_model(points, shape, job.seed)?;
-    println!(
+    say!(
         "{} anchors from {} points (voxel {voxel:.5}), {} neural Gaussians each, features of {}",
         initial.len(),
         points.positions.len(),
@@ -158,9 +159,11 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     let mut trainer = AnchorTrainer::new(&initial, &data, total, job.background, job.seed)?;
     if let Some(w) = &job.wrapper {
         trainer = trainer.with_wrapper(w.clone())?.with_stage_two_lambda(job.stage_two_lambda);
-        println!(
+        say!(
             "stage 1: {} iterations; stage 2: {stage_two} steps ({} crops per training view, at least {})",
-            job.iterations, w.crops_per_view, w.min_steps
+            job.iterations,
+            w.crops_per_view,
+            w.min_steps
         );
     }
     if job.quantization_noise {
@@ -174,7 +177,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let lookup =
             ContextLookup::new(context_shape(job.context_planes.clone()), &coords, grid.depth, &trainer.device());
         let shape = &lookup.shape;
-        println!(
+        say!(
             "context grid: {} entries in {} levels and {} plane levels",
             lookup.entries,
             shape.levels.len(),
@@ -188,9 +191,12 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     trainer = trainer.with_placement(grid, coords);
     if job.growth {
         let schedule = GrowthSchedule::scaled(job.iterations, job.max_anchors.unwrap_or(2 * initial.len()));
-        println!(
+        say!(
             "growing and pruning anchors every {} iterations from {} to {}, up to {}",
-            schedule.every, schedule.from, schedule.until, schedule.max_anchors
+            schedule.every,
+            schedule.from,
+            schedule.until,
+            schedule.max_anchors
         );
         trainer = trainer.with_growth(schedule);
     }
@@ -212,14 +218,14 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         }
     }
     let training_seconds = start.elapsed().as_secs_f64();
-    println!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
+    say!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
     let stage_two_lambda_factor = (job.wrapper.is_some() && job.lambda.is_some()).then(|| trainer.lambda_factor());
     if let Some(factor) = stage_two_lambda_factor {
-        println!("stage 2 ended with λ x {factor:.2}");
+        say!("stage 2 ended with λ x {factor:.2}");
     }
     let growth = trainer.growth_totals();
     if let Some(g) = growth {
-        println!("anchors: {} grown, {} pruned", g.grown, g.pruned);
+        say!("anchors: {} grown, {} pruned", g.grown, g.pruned);
     }
     // What the rate model says the attributes cost (at the last step's noisy values), to set
     // beside the stream's sections.
@@ -228,13 +234,18 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     if let Some(bytes) = estimated_attribute_bytes {
         let grid = context_grid_bytes.map(|g| format!(", grid {g:.0} bytes")).unwrap_or_default();
         let model = if job.context { "context" } else { "factorized" };
-        println!("rate model ({model}) estimate: attributes, anchor positions and masks {bytes:.0} bytes{grid}");
+        say!("rate model ({model}) estimate: attributes, anchor positions and masks {bytes:.0} bytes{grid}");
     }
     let steps = trainer.steps().unwrap_or(job.steps);
     if steps != job.steps {
-        println!(
+        say!(
             "learned steps: features {:.4}, scaling {:.4}, offsets {:.4} (from {}, {}, {})",
-            steps.feature, steps.scaling, steps.offset, job.steps.feature, job.steps.scaling, job.steps.offset
+            steps.feature,
+            steps.scaling,
+            steps.offset,
+            job.steps.feature,
+            job.steps.scaling,
+            job.steps.offset
         );
     }
     let model = trainer.model();
@@ -283,13 +294,13 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
     let (content, bytes, dropped) = fit_anchors(content, &header, wrapper.as_ref(), target, &cameras)?;
     if let Some(target) = job.target_bytes {
-        println!("target {target} bytes: {dropped} least important anchors dropped to fit");
+        say!("target {target} bytes: {dropped} least important anchors dropped to fit");
     }
     let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
     if let Some(path) = &job.output {
         pwgs_decoder::atomic_file::write_atomically(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
-        println!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
+        say!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
     }
     if let (Some(path), Base::Anchors(model)) = (&job.export_ply, &scene.base) {
         let export = export_gaussians(model, &cameras);
@@ -298,7 +309,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let checked = if test.is_empty() { &cameras[..cameras.len().min(8)] } else { &test[..] };
         let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
         pwgs_decoder::ply::write_gaussians(path, &export)?;
-        println!(
+        say!(
             "wrote {} Gaussians (SH degree 3) to {}: PSNR {psnr:.2} dB against the anchor renders of {} views",
             export.len(),
             path.display(),
@@ -359,7 +370,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
 /// One line per candidate of the MLP step choice, and the steps chosen.
 fn print_step_choice(candidates: &[StepCandidate], chosen: i8, context: Option<i8>) {
     for c in candidates {
-        println!(
+        say!(
             "  MLP weights at 2^{}: {} bytes, pixel objective {:.5}, cost {:.5}{}",
             c.weight_exponent,
             c.bytes,
@@ -369,7 +380,7 @@ fn print_step_choice(candidates: &[StepCandidate], chosen: i8, context: Option<i
         );
     }
     if let Some(e) = context {
-        println!("context network at 2^{e} (the fewest bytes)");
+        say!("context network at 2^{e} (the fewest bytes)");
     }
 }
 

@@ -10,6 +10,7 @@ use anyhow::{Context, Result};
 use glam::Vec3;
 use pwgs_dataset::View;
 use pwgs_decoder::raster::RenderOptions;
+use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream;
@@ -81,7 +82,7 @@ pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
         .map(|(i, (camera, image))| View { name: format!("orbit_{i:03}"), camera, image })
         .collect();
     let (views, mean) = evaluation.run(&candidate, &views)?;
-    println!("{}: {bytes} bytes ({})", job.candidate.display(), sized.display());
+    say!("{}: {bytes} bytes ({})", job.candidate.display(), sized.display());
     let report = CompareReport {
         reference: job.reference.display().to_string(),
         candidate: job.candidate.display().to_string(),

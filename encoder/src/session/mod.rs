@@ -14,6 +14,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use pwgs_bitstream::Container;
 use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::say;
 use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
@@ -91,19 +92,18 @@ impl WrapperSummary {
     }
 }
 
-/// Compresses `g` into the stream `options` names and decodes it back through the decoder
-/// library.
+/// Compresses `g` with `settings` into the stream `options` names and decodes it back through
+/// the decoder library.
 fn write_stream(
     g: &Gaussians,
-    context: &StreamContext,
+    (context, settings): (&StreamContext, &QuantizerSettings),
     options: &StreamOptions,
     wrapper: Option<&QuantizedSynthesis>,
     weights: Option<&[f32]>,
 ) -> Result<(Compressed, StreamSummary)> {
     let start = Instant::now();
-    let settings = QuantizerSettings::for_quality(options.quality);
     let limit = options.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
-    let coding = Coding { settings: &settings, weights, prune_faint: options.prune_faint };
+    let coding = Coding { settings, weights, prune_faint: options.prune_faint };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
     pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
@@ -126,7 +126,7 @@ fn write_stream(
         attribute_sha256: compressed.decoded.scene.attribute_hash(),
         seconds: start.elapsed().as_secs_f64(),
     };
-    println!(
+    say!(
         "wrote {} ({} bytes, {} Gaussians, SH degree {}, {} invisible dropped) in {:.2} s",
         path.display(),
         summary.bytes,
@@ -136,10 +136,10 @@ fn write_stream(
         summary.seconds
     );
     if options.prune_faint {
-        println!("{} Gaussians too faint in the importance views dropped (--prune-faint)", summary.dropped_faint);
+        say!("{} Gaussians too faint in the importance views dropped (--prune-faint)", summary.dropped_faint);
     }
     if let Some(target) = options.target_bytes {
-        println!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);
+        say!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);
     }
     Ok((compressed, summary))
 }
@@ -174,7 +174,7 @@ fn quantize_wrapper(
 
 /// Prints f's quantization.
 fn print_wrapper(w: &QuantizedSynthesis) {
-    println!(
+    say!(
         "wrapper: {} parameters, steps 2^{} (weights) and 2^{} (biases)",
         w.values.len(),
         w.weight_exponent,

