@@ -180,6 +180,53 @@ pub fn compress_to_size(
     wrapper: Option<&QuantizedSynthesis>,
     target: usize,
 ) -> Result<Compressed, CompressError> {
+    let Selection { visible, invisible, faint, reference } = select(g, coding)?;
+    // Most important first: by importance weight when there are weights (what shows in views),
+    // else by opacity times area.
+    let rank = || {
+        let mut ranked = visible.clone();
+        match coding.weights {
+            Some(w) => ranked.sort_by(|&a, &b| w[b].total_cmp(&w[a]).then(a.cmp(&b))),
+            None => ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b))),
+        }
+        ranked
+    };
+    let write = |keep: Option<&[usize]>| {
+        write_selected(g, keep.unwrap_or(&visible), (coding, reference), context, wrapper).map(|(bytes, _)| bytes)
+    };
+    let (kept, bytes) = match most_important_fitting(visible.len(), target, rank, write)? {
+        Fit::Fits { kept, bytes } => (kept.map_or(visible.len(), |k| k.len()), bytes),
+        Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
+    };
+    let decoded = stream::decode(&bytes)?;
+    Ok(Compressed { bytes, decoded, invisible, faint, pruned: visible.len() - kept })
+}
+
+/// What [`compress`] with `coding` and no target size keeps of `g` (indices into `g`,
+/// increasing) and those Gaussians as a decoder reconstructs them, in that order (the
+/// stream's own order is the octree's).
+pub fn reconstruction(
+    g: &Gaussians,
+    coding: Coding,
+    context: &StreamContext,
+) -> Result<(Vec<usize>, Gaussians), CompressError> {
+    let Selection { visible, reference, .. } = select(g, coding)?;
+    let (_, content) = write_selected(g, &visible, (coding, reference), context, None)?;
+    Ok((visible, content.dequantize()))
+}
+
+/// The Gaussians a stream can hold, before any target size.
+struct Selection {
+    /// Indices into the model, increasing.
+    visible: Vec<usize>,
+    /// Dropped as invisible, and as too faint.
+    invisible: usize,
+    faint: usize,
+    /// The reference weight of the importance classes (0 without weights).
+    reference: f32,
+}
+
+fn select(g: &Gaussians, coding: Coding) -> Result<Selection, CompressError> {
     check_finite(g)?;
     if coding.weights.is_some_and(|w| w.len() != g.len()) {
         return Err(CompressError::Weights { weights: coding.weights.map_or(0, <[f32]>::len), gaussians: g.len() });
@@ -193,25 +240,7 @@ pub fn compress_to_size(
         visible.retain(|&i| w[i] > 0.0 && w[i] >= floor);
     }
     let faint = g.len() - invisible - visible.len();
-    // Most important first: by importance weight when there are weights (what shows in views),
-    // else by opacity times area.
-    let rank = || {
-        let mut ranked = visible.clone();
-        match coding.weights {
-            Some(w) => ranked.sort_by(|&a, &b| w[b].total_cmp(&w[a]).then(a.cmp(&b))),
-            None => ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b))),
-        }
-        ranked
-    };
-    let write = |keep: Option<&[usize]>| {
-        write_selected(g, keep.unwrap_or(&visible), (coding, reference.unwrap_or(0.0)), context, wrapper)
-    };
-    let (kept, bytes) = match most_important_fitting(visible.len(), target, rank, write)? {
-        Fit::Fits { kept, bytes } => (kept.map_or(visible.len(), |k| k.len()), bytes),
-        Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
-    };
-    let decoded = stream::decode(&bytes)?;
-    Ok(Compressed { bytes, decoded, invisible, faint, pruned: visible.len() - kept })
+    Ok(Selection { visible, invisible, faint, reference: reference.unwrap_or(0.0) })
 }
 
 /// How much a Gaussian can show, for choosing what to drop: the log of its opacity times its
@@ -222,14 +251,14 @@ fn importance(g: &Gaussians, i: usize) -> f32 {
     g.opacity_logits[i].min(0.0) + (2.0 / 3.0) * (sx + sy + sz)
 }
 
-/// The stream of the Gaussians `keep` (indices into `g`, increasing).
+/// The stream of the Gaussians `keep` (indices into `g`, increasing), and what it codes.
 fn write_selected(
     g: &Gaussians,
     keep: &[usize],
     coding: (Coding, f32),
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
-) -> Result<Vec<u8>, CompressError> {
+) -> Result<(Vec<u8>, PlainGaussians), CompressError> {
     if keep.len() > stream::header::MAX_GAUSSIANS as usize {
         return Err(CompressError::TooMany { count: keep.len(), limit: stream::header::MAX_GAUSSIANS });
     }
@@ -250,11 +279,11 @@ fn write_selected(
             Ok(bytes) if content.colour_differences_fit() => {
                 // The colours as differences (SPEC.md 6.6) when that is smaller: it is on
                 // captured scenes (a third of the colours' bytes on biker), not on random ones.
-                let differences = PlainGaussians { colour_differences: true, ..content };
+                let differences = PlainGaussians { colour_differences: true, ..content.clone() };
                 let other = stream::encode(&header, &differences, wrapper)?;
-                return Ok(if other.len() < bytes.len() { other } else { bytes });
+                return Ok(if other.len() < bytes.len() { (other, differences) } else { (bytes, content) });
             }
-            Ok(bytes) => return Ok(bytes),
+            Ok(bytes) => return Ok((bytes, content)),
             // (With classes `POSN`'s grid is coarser than the one refined: the refined one
             // is what reaches the deepest grid.)
             Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth + content.refine() < MAX_DEPTH => finer += 1,

@@ -4,6 +4,7 @@
 
 pub mod anchor;
 pub mod backward;
+pub mod colour_refit;
 pub mod compress;
 pub mod evaluate;
 pub mod exit;

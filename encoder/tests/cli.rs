@@ -280,6 +280,11 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec!["--from", "m.ply", "-o", "x.pwb", "--prune-faint"], "--importance-classes"),
         (vec!["--from", "m.ply", "-o", "x.pwb", "--search-steps"], "--importance-classes"),
         (vec![scene, "--search-steps"], "--importance-classes"),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--refit-colours"], "--importance-classes"),
+        (
+            vec!["--from", "m.ply", "-o", "x.pwb", "--importance-classes", "--refit-colours", "--target-bytes", "9"],
+            "--target-bytes",
+        ),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

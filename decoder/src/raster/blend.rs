@@ -150,3 +150,53 @@ pub fn splat_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions,
     }
     weights
 }
+
+/// The blending weights `w = T * alpha` as a linear map from per-Gaussian colours to an
+/// image (the image is `sum w c` plus the background times the final transmittance), for
+/// fitting colours to a target with the geometry held: [`apply`](Self::apply) is the map,
+/// [`transpose`](Self::transpose) its adjoint. Both walk the tiles with [`blend_band`]'s
+/// decisions, in order on one thread, so their sums do not depend on threads.
+pub struct ColourMap<'a> {
+    pub bins: &'a TileBins,
+    pub splats: &'a [Splat],
+    pub options: &'a RenderOptions,
+}
+
+impl ColourMap<'_> {
+    /// Visits each blended (pixel index in the window, splat, weight).
+    fn walk(&self, mut visit: impl FnMut(usize, &Splat, f32)) {
+        let window = self.bins.window;
+        for t in 0..(self.bins.tiles_x * self.bins.tiles_y) as usize {
+            let [x0, x1, y0, _] = self.bins.tile_rect(t);
+            let tw = (x1 - x0) as usize;
+            walk_tile(self.bins, t, self.splats, self.options, |_, s, p, alpha, trans| {
+                let (x, y) = ((x0 - window.x0) as usize + p % tw, (y0 - window.y0) as usize + p / tw);
+                visit(y * window.width as usize + x, s, alpha * trans);
+            });
+        }
+    }
+
+    /// The image `sum w values[i]` over the window (no background), RGB interleaved.
+    pub fn apply(&self, values: &[[f32; 3]]) -> Vec<f32> {
+        let w = self.bins.window;
+        let mut image = vec![0.0f32; w.width as usize * w.height as usize * 3];
+        self.walk(|p, s, weight| {
+            let v = values[s.index as usize];
+            image[p * 3..p * 3 + 3].iter_mut().zip(v).for_each(|(o, v)| *o += weight * v);
+        });
+        image
+    }
+
+    /// Per Gaussian (`0 .. gaussians`), `sum w image` over the pixels it is blended into, and
+    /// `sum w^2` (the diagonal of the map's normal matrix).
+    pub fn transpose(&self, image: &[f32], gaussians: usize) -> (Vec<[f32; 3]>, Vec<f32>) {
+        let mut sums = vec![[0.0f32; 3]; gaussians];
+        let mut squares = vec![0.0f32; gaussians];
+        self.walk(|p, s, weight| {
+            let i = s.index as usize;
+            sums[i].iter_mut().zip(&image[p * 3..p * 3 + 3]).for_each(|(o, v)| *o += weight * v);
+            squares[i] += weight * weight;
+        });
+        (sums, squares)
+    }
+}

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
@@ -13,7 +14,8 @@ use pwgs_decoder::splat_file::SpzAxes;
 use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};
-use crate::compress::{QuantizerSettings, StreamContext};
+use crate::colour_refit::{self, RefitOutcome};
+use crate::compress::{Coding, QuantizerSettings, StreamContext};
 use crate::fidelity::{orbit_cameras, renders};
 use crate::importance;
 use crate::metrics::psnr::psnr;
@@ -48,6 +50,9 @@ pub struct ImportJob {
     /// With `importance`: search the balance of the steps for this model on the importance
     /// views ([`step_search`]) instead of taking the quality level's.
     pub search_steps: bool,
+    /// With `importance`: refit the colours to the quantized geometry on the importance views
+    /// ([`colour_refit`]).
+    pub refit_colours: bool,
 }
 
 #[derive(Serialize)]
@@ -63,6 +68,8 @@ pub struct ImportReport {
     pub orbit_psnr_min: Option<f64>,
     /// What `--search-steps` chose and measured.
     pub step_search: Option<SearchOutcome>,
+    /// What `--refit-colours` measured.
+    pub colour_refit: Option<RefitOutcome>,
 }
 
 pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
@@ -72,42 +79,10 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
     let context = StreamContext::from_gaussians(&gaussians, job.background);
     let options = RenderOptions { background: job.background, ..Default::default() };
-    let mut settings = QuantizerSettings::for_quality(job.stream.quality);
-    let mut step_search = None;
-    let weights = match job.importance {
-        true => {
-            let start = Instant::now();
-            let cameras = importance::cameras(&context, Vec3::from(job.up), importance::VIEW_SIZE)?;
-            let weights = importance::blend_weights(&gaussians, &cameras, &options);
-            let hidden = weights.iter().filter(|&&w| w == 0.0).count();
-            say!(
-                "importance: {} views of {size}x{size} in {:.1} s; {hidden} of {} Gaussians never blended",
-                cameras.len(),
-                start.elapsed().as_secs_f64(),
-                gaussians.len(),
-                size = importance::VIEW_SIZE,
-            );
-            if job.search_steps {
-                let start = Instant::now();
-                let views: Vec<_> = cameras.into_iter().step_by(SEARCH_VIEW_STRIDE).collect();
-                let probe = Probe {
-                    gaussians: &gaussians,
-                    weights: &weights,
-                    prune_faint: job.stream.prune_faint,
-                    context: &context,
-                    cameras: &views,
-                    options: &options,
-                };
-                let outcome = step_search::search(&probe, job.stream.quality)?;
-                print_search(&outcome, views.len(), start.elapsed().as_secs_f64());
-                settings = outcome.settings.clone();
-                step_search = Some(outcome);
-            }
-            Some(weights)
-        }
-        false => None,
-    };
-    let (compressed, stream) = write_stream(&gaussians, (&context, &settings), &job.stream, None, weights.as_deref())?;
+    let plan = plan_coding(job, &gaussians, &context, &options)?;
+    let coded = plan.refitted.as_ref().unwrap_or(&gaussians);
+    let (compressed, stream) =
+        write_stream(coded, (&context, &plan.settings), &job.stream, None, plan.weights.as_deref())?;
     let ratio = ply_bytes as f64 / stream.bytes as f64;
     say!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), stream.path, stream.bytes);
     let mut orbit_psnr = Vec::new();
@@ -144,7 +119,8 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
         orbit_psnr,
         orbit_psnr_mean: mean,
         orbit_psnr_min: min,
-        step_search,
+        step_search: plan.step_search,
+        colour_refit: plan.colour_refit,
     };
     if let Some(path) = &job.report {
         write_report(path, &report)?;
@@ -173,3 +149,82 @@ fn print_search(outcome: &SearchOutcome, views: usize, seconds: f64) {
         db(outcome.after.mse),
     );
 }
+
+/// How an import codes its model: the importance weights, the settings, and the model to code
+/// (the input, or the input with refitted colours).
+struct CodingPlan {
+    weights: Option<Vec<f32>>,
+    settings: QuantizerSettings,
+    step_search: Option<SearchOutcome>,
+    refitted: Option<Gaussians>,
+    colour_refit: Option<RefitOutcome>,
+}
+
+fn plan_coding(
+    job: &ImportJob,
+    gaussians: &Gaussians,
+    context: &StreamContext,
+    options: &RenderOptions,
+) -> Result<CodingPlan> {
+    let mut plan = CodingPlan {
+        weights: None,
+        settings: QuantizerSettings::for_quality(job.stream.quality),
+        step_search: None,
+        refitted: None,
+        colour_refit: None,
+    };
+    if !job.importance {
+        return Ok(plan);
+    }
+    let start = Instant::now();
+    let cameras = importance::cameras(context, Vec3::from(job.up), importance::VIEW_SIZE)?;
+    let weights = importance::blend_weights(gaussians, &cameras, options);
+    let hidden = weights.iter().filter(|&&w| w == 0.0).count();
+    say!(
+        "importance: {} views of {size}x{size} in {:.1} s; {hidden} of {} Gaussians never blended",
+        cameras.len(),
+        start.elapsed().as_secs_f64(),
+        gaussians.len(),
+        size = importance::VIEW_SIZE,
+    );
+    if job.search_steps {
+        let start = Instant::now();
+        let views: Vec<_> = cameras.iter().step_by(SEARCH_VIEW_STRIDE).cloned().collect();
+        let probe = Probe {
+            gaussians,
+            weights: &weights,
+            prune_faint: job.stream.prune_faint,
+            context,
+            cameras: &views,
+            options,
+        };
+        let outcome = step_search::search(&probe, job.stream.quality)?;
+        print_search(&outcome, views.len(), start.elapsed().as_secs_f64());
+        plan.settings = outcome.settings.clone();
+        plan.step_search = Some(outcome);
+    }
+    if job.refit_colours {
+        let start = Instant::now();
+        let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.stream.prune_faint };
+        let (refitted, outcome) =
+            colour_refit::refit_colours(gaussians, coding, context, (&cameras, options), REFIT_ITERATIONS)?;
+        let db = |mse: f64| -10.0 * mse.log10();
+        say!(
+            "colour refit: {} Gaussians on {} views in {:.1} s: {:.2} dB -> {} dB (before quantizing the colours)",
+            outcome.gaussians,
+            outcome.views,
+            start.elapsed().as_secs_f64(),
+            db(outcome.mse_before),
+            outcome.mse_after.iter().map(|&m| format!("{:.2}", db(m))).collect::<Vec<_>>().join(" -> "),
+        );
+        plan.refitted = Some(refitted);
+        plan.colour_refit = Some(outcome);
+    }
+    plan.weights = Some(weights);
+    Ok(plan)
+}
+
+/// Conjugate-gradient iterations of `--refit-colours`: on biker (quality 11, 57 views) 8 of
+/// them reach 58.61 dB on the linear model and 57.81 dB on the orbit after quantizing, 16
+/// reach 59.14 dB and 57.87 dB in twice the time.
+const REFIT_ITERATIONS: usize = 8;

@@ -42,8 +42,17 @@ const ANCHOR_ONLY: &[&str] = &[
 /// Options of training on a scene, besides the wrapper's, which `--from-ply` does not read.
 const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
 /// Options only `--from-ply` reads (its input and its orbit check).
-const IMPORT_ONLY: &[&str] =
-    &["spz_axes", "orbit", "up", "orbit_size", "orbit_renders", "importance_classes", "prune_faint", "search_steps"];
+const IMPORT_ONLY: &[&str] = &[
+    "spz_axes",
+    "orbit",
+    "up",
+    "orbit_size",
+    "orbit_renders",
+    "importance_classes",
+    "prune_faint",
+    "search_steps",
+    "refit_colours",
+];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub(crate) enum Base {
@@ -116,6 +125,12 @@ pub(crate) struct EncodeArgs {
     /// importance views. Slower (tens of candidates, each written, decoded and rendered).
     #[arg(long, requires = "importance_classes")]
     search_steps: bool,
+    /// With --importance-classes: refit the colours to the quantized geometry so that the
+    /// stream renders closest to the model on the importance views (least squares, the
+    /// geometry held), before they are quantized. Not with --target-bytes (the refit is for
+    /// the Gaussians the quality keeps).
+    #[arg(long, requires = "importance_classes", conflicts_with = "target_bytes")]
+    refit_colours: bool,
     /// Base representation.
     #[arg(long, value_enum, default_value = "anchor")]
     pub(crate) base: Base,
@@ -346,6 +361,7 @@ impl EncodeArgs {
             importance: self.importance_classes,
             up: self.up,
             search_steps: self.search_steps,
+            refit_colours: self.refit_colours,
         })
     }
 
