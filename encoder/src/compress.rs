@@ -202,7 +202,7 @@ pub fn compress_to_size(
     Ok(Compressed { bytes, decoded, invisible, faint, pruned: visible.len() - kept })
 }
 
-/// What [`compress`] with `coding` and no target size keeps of `g` (indices into `g`,
+/// What [`compress_to_size`] with `coding` and no target size keeps of `g` (indices into `g`,
 /// increasing) and those Gaussians as a decoder reconstructs them, in that order (the
 /// stream's own order is the octree's).
 pub fn reconstruction(
