@@ -11,10 +11,11 @@
 # Environment: PWENC and PWBENCH name the binaries (default: the release builds in
 # $CARGO_TARGET_DIR or target/); ORBIT views (8), SIZE pixels (512), UP (0,-1,0), METRICS for
 # `pwenc compare --metrics` (dists; empty for PSNR and SSIM only), WEIGHTS a weights folder,
-# PWENC_OPTIONS more options for our streams (e.g. --importance-classes).
+# PWENC_OPTIONS more options for our streams (e.g. "--importance-classes --prune-faint
+# --search-steps --refit-colours", the README's figures).
 # SOG is written on the CPU (`-g cpu`), as no GPU is assumed.
 set -euo pipefail
-[ $# -ge 2 ] || { sed -n '2,15p' "$0" >&2; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,16p' "$0" >&2; exit 2; }
 input=$1
 dir=$2
 shift 2
