@@ -12,7 +12,7 @@
 use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::{Gaussians, SH_C0};
 use pwgs_decoder::raster::blend::ColourMap;
-use pwgs_decoder::raster::{RenderOptions, Window, render, tiles, visible_splats};
+use pwgs_decoder::raster::{RenderOptions, Rendered, rasterize, render};
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -42,11 +42,10 @@ pub fn refit_colours(
     let views: Vec<_> = cameras
         .par_iter()
         .map(|camera| {
-            let splats = visible_splats(&decoded, camera, &options.projection);
-            let bins = tiles::bin(&splats, Window::full(camera));
+            // The decoded model's render and the splats and bins it came from, which the map walks.
+            let Rendered { color, splats, bins, .. } = rasterize(&decoded, camera, options);
             let target = render(g, camera, options);
-            let now = render(&decoded, camera, options);
-            let residual: Vec<f32> = target.data.iter().zip(&now.data).map(|(t, c)| t - c).collect();
+            let residual: Vec<f32> = target.data.iter().zip(&color.data).map(|(t, c)| t - c).collect();
             (splats, bins, residual)
         })
         .collect();

@@ -279,9 +279,13 @@ fn write_selected(
             Ok(bytes) if content.colour_differences_fit() => {
                 // The colours as differences (SPEC.md 6.6) when that is smaller: it is on
                 // captured scenes (a third of the colours' bytes on biker), not on random ones.
-                let differences = PlainGaussians { colour_differences: true, ..content.clone() };
-                let other = stream::encode(&header, &differences, wrapper)?;
-                return Ok(if other.len() < bytes.len() { (other, differences) } else { (bytes, content) });
+                let mut content = PlainGaussians { colour_differences: true, ..content };
+                let other = stream::encode(&header, &content, wrapper)?;
+                if other.len() < bytes.len() {
+                    return Ok((other, content));
+                }
+                content.colour_differences = false;
+                return Ok((bytes, content));
             }
             Ok(bytes) => return Ok((bytes, content)),
             // (With classes `POSN`'s grid is coarser than the one refined: the refined one
