@@ -11,7 +11,12 @@ pub fn mse(a: &RgbImage, b: &RgbImage) -> f64 {
 
 /// PSNR in dB with peak 1: 10 log10(1 / MSE). Identical images give +infinity.
 pub fn psnr(a: &RgbImage, b: &RgbImage) -> f64 {
-    -10.0 * mse(a, b).log10()
+    psnr_of_mse(mse(a, b))
+}
+
+/// The PSNR in dB (peak 1) of a mean squared error.
+pub fn psnr_of_mse(mse: f64) -> f64 {
+    -10.0 * mse.log10()
 }
 
 #[cfg(test)]

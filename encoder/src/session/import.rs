@@ -18,7 +18,7 @@ use crate::colour_refit::{self, RefitOutcome};
 use crate::compress::{Coding, QuantizerSettings, StreamContext};
 use crate::fidelity::{orbit_cameras, renders};
 use crate::importance;
-use crate::metrics::psnr::psnr;
+use crate::metrics::psnr::{psnr, psnr_of_mse};
 use crate::step_search::{self, KNOBS, Probe, SearchOutcome};
 
 /// Views on a circle around the model, rendered from the input and from the decoded stream.
@@ -138,15 +138,14 @@ fn print_search(outcome: &SearchOutcome, views: usize, seconds: f64) {
         .map(|(knob, n)| format!("{knob} {n:+}"))
         .collect();
     let moved = if moved.is_empty() { "none".to_string() } else { moved.join(", ") };
-    let db = |mse: f64| -10.0 * mse.log10();
     say!(
         "step search: {} candidates on {views} importance views in {seconds:.1} s; notches moved: {moved}; \
          {} bytes at {:.2} dB -> {} bytes at {:.2} dB on those views",
         outcome.candidates,
         outcome.before.bytes,
-        db(outcome.before.mse),
+        psnr_of_mse(outcome.before.mse),
         outcome.after.bytes,
-        db(outcome.after.mse),
+        psnr_of_mse(outcome.after.mse),
     );
 }
 
@@ -208,14 +207,13 @@ fn plan_coding(
         let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.stream.prune_faint };
         let (refitted, outcome) =
             colour_refit::refit_colours(gaussians, coding, context, (&cameras, options), REFIT_ITERATIONS)?;
-        let db = |mse: f64| -10.0 * mse.log10();
         say!(
             "colour refit: {} Gaussians on {} views in {:.1} s: {:.2} dB -> {} dB (before quantizing the colours)",
             outcome.gaussians,
             outcome.views,
             start.elapsed().as_secs_f64(),
-            db(outcome.mse_before),
-            outcome.mse_after.iter().map(|&m| format!("{:.2}", db(m))).collect::<Vec<_>>().join(" -> "),
+            psnr_of_mse(outcome.mse_before),
+            outcome.mse_after.iter().map(|&m| format!("{:.2}", psnr_of_mse(m))).collect::<Vec<_>>().join(" -> "),
         );
         plan.refitted = Some(refitted);
         plan.colour_refit = Some(outcome);
