@@ -39,17 +39,16 @@ pub fn refit_colours(
 ) -> Result<(Gaussians, RefitOutcome), CompressError> {
     let (keep, decoded) = reconstruction(g, coding, context)?;
     let n = decoded.len();
-    let views: Vec<_> = cameras
+    let (geometry, mut residuals): (Vec<_>, Vec<Vec<f32>>) = cameras
         .par_iter()
         .map(|camera| {
             // The decoded model's render and the splats and bins it came from, which the map walks.
             let Rendered { color, splats, bins, .. } = rasterize(&decoded, camera, options);
             let target = render(g, camera, options);
             let residual: Vec<f32> = target.data.iter().zip(&color.data).map(|(t, c)| t - c).collect();
-            (splats, bins, residual)
+            ((splats, bins), residual)
         })
-        .collect();
-    let (geometry, mut residuals): (Vec<_>, Vec<Vec<f32>>) = views.into_iter().map(|(s, b, r)| ((s, b), r)).unzip();
+        .unzip();
     let maps: Vec<ColourMap> = geometry.iter().map(|(splats, bins)| ColourMap { bins, splats, options }).collect();
     let values = residuals.iter().map(Vec::len).sum::<usize>().max(1) as f64;
     let mse = |images: &[Vec<f32>]| images.iter().flatten().map(|&v| f64::from(v) * f64::from(v)).sum::<f64>() / values;
