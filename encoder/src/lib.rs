@@ -15,6 +15,7 @@ pub mod init;
 pub mod metrics;
 pub mod rotation_frame;
 pub mod session;
+pub mod shape_refit;
 pub mod size_fit;
 pub mod splat_op;
 pub mod step_search;

@@ -285,6 +285,13 @@ fn an_option_the_job_would_ignore_is_refused() {
             vec!["--from", "m.ply", "-o", "x.pwb", "--importance-classes", "--refit-colours", "--target-bytes", "9"],
             "--target-bytes",
         ),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--refit-shapes", "4"], "--importance-classes"),
+        (
+            vec!["--from", "m.ply", "-o", "x.pwb", "--importance-classes", "--refit-shapes=4", "--target-bytes=9"],
+            "--target-bytes",
+        ),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--importance-classes", "--refit-shapes", "0"], "--refit-shapes"),
+        (vec![scene, "--importance-classes", "--refit-shapes", "4"], "applies to --from-ply"),
     ] {
         let out = pwenc(&args);
         let (stdout, stderr) = (String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));

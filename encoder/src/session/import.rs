@@ -19,6 +19,7 @@ use crate::compress::{Coding, QuantizerSettings, StreamContext};
 use crate::fidelity::{orbit_cameras, renders};
 use crate::importance;
 use crate::metrics::psnr::{psnr, psnr_of_mse};
+use crate::shape_refit::{self, ShapeRefitOutcome};
 use crate::step_search::{self, KNOBS, Probe, SearchOutcome};
 
 /// Views on a circle around the model, rendered from the input and from the decoded stream.
@@ -53,6 +54,9 @@ pub struct ImportJob {
     /// With `importance`: refit the colours to the quantized geometry on the importance views
     /// ([`colour_refit`]).
     pub refit_colours: bool,
+    /// With `importance`: refit the scales, rotations, opacities and SH to the quantized
+    /// positions on the importance views ([`shape_refit`]), `epochs` passes.
+    pub refit_shapes: Option<usize>,
 }
 
 #[derive(Serialize)]
@@ -70,6 +74,8 @@ pub struct ImportReport {
     pub step_search: Option<SearchOutcome>,
     /// What `--refit-colours` measured.
     pub colour_refit: Option<RefitOutcome>,
+    /// What `--refit-shapes` measured.
+    pub shape_refit: Option<ShapeRefitOutcome>,
 }
 
 pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
@@ -121,6 +127,7 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
         orbit_psnr_min: min,
         step_search: plan.step_search,
         colour_refit: plan.colour_refit,
+        shape_refit: plan.shape_refit,
     };
     if let Some(path) = &job.report {
         write_report(path, &report)?;
@@ -157,6 +164,7 @@ struct CodingPlan {
     step_search: Option<SearchOutcome>,
     refitted: Option<Gaussians>,
     colour_refit: Option<RefitOutcome>,
+    shape_refit: Option<ShapeRefitOutcome>,
 }
 
 fn plan_coding(
@@ -171,6 +179,7 @@ fn plan_coding(
         step_search: None,
         refitted: None,
         colour_refit: None,
+        shape_refit: None,
     };
     if !job.importance {
         return Ok(plan);
@@ -202,11 +211,25 @@ fn plan_coding(
         plan.settings = outcome.settings.clone();
         plan.step_search = Some(outcome);
     }
+    let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.stream.prune_faint };
+    if let Some(epochs) = job.refit_shapes {
+        let start = Instant::now();
+        let (refitted, outcome) = shape_refit::refit_shapes(gaussians, coding, context, (&cameras, options), epochs)?;
+        say!(
+            "shape refit: {} Gaussians on {} views in {:.1} s: {} dB per epoch (at the quantized positions, before quantizing the rest)",
+            outcome.gaussians,
+            outcome.views,
+            start.elapsed().as_secs_f64(),
+            outcome.mse_per_epoch.iter().map(|&m| format!("{:.2}", psnr_of_mse(m))).collect::<Vec<_>>().join(" -> "),
+        );
+        plan.refitted = Some(refitted);
+        plan.shape_refit = Some(outcome);
+    }
     if job.refit_colours {
         let start = Instant::now();
-        let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.stream.prune_faint };
+        let model = plan.refitted.as_ref().unwrap_or(gaussians);
         let (refitted, outcome) =
-            colour_refit::refit_colours(gaussians, coding, context, (&cameras, options), REFIT_ITERATIONS)?;
+            colour_refit::refit_colours((model, gaussians), coding, context, (&cameras, options), REFIT_ITERATIONS)?;
         say!(
             "colour refit: {} Gaussians on {} views in {:.1} s: {:.2} dB -> {} dB (before quantizing the colours)",
             outcome.gaussians,

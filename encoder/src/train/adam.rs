@@ -77,3 +77,55 @@ impl Moments {
         }
     }
 }
+
+/// Adam on a plain slice of parameters, for the refits that run the rasterizer's gradients
+/// without Burn ([`crate::shape_refit`]): the same moments and bias correction as [`direction`].
+#[derive(Debug, Clone)]
+pub struct SliceAdam {
+    first: Vec<f32>,
+    second: Vec<f32>,
+}
+
+impl SliceAdam {
+    pub fn new(len: usize) -> Self {
+        Self { first: vec![0.0; len], second: vec![0.0; len] }
+    }
+
+    /// One step (`step` counts from 1) of `params` along `grads`, `rate(i)` the learning rate
+    /// of parameter `i`. Unlike [`direction`], the denominator is at least the slice's root
+    /// mean square gradient: Adam moves every parameter by about its rate whatever its
+    /// gradient's size, so parameters that a refit's few views barely see would drift by
+    /// noise; here a parameter with a smaller gradient than is typical moves proportionally less.
+    pub fn step(&mut self, params: &mut [f32], grads: &[f32], rate: impl Fn(usize) -> f32, step: u32) {
+        let first_scale = 1.0 / (1.0 - BETA1.powi(step as i32));
+        let second_scale = 1.0 / (1.0 - BETA2.powi(step as i32));
+        let mut total = 0.0f64;
+        for ((g, m), v) in grads.iter().zip(&mut self.first).zip(&mut self.second) {
+            *m = BETA1 * *m + (1.0 - BETA1) * g;
+            *v = BETA2 * *v + (1.0 - BETA2) * g * g;
+            total += f64::from(*v);
+        }
+        let floor = ((total / self.second.len().max(1) as f64) as f32 * second_scale).sqrt() + EPSILON;
+        let moments = self.first.iter().zip(&self.second);
+        for (i, (p, (m, v))) in params.iter_mut().zip(moments).enumerate() {
+            *p -= rate(i) * (m * first_scale) / (v * second_scale).sqrt().max(floor);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::SliceAdam;
+
+    #[test]
+    fn a_parameter_with_a_smaller_gradient_than_is_typical_moves_proportionally_less() {
+        let mut adam = SliceAdam::new(2);
+        let mut params = [0.0f32, 0.0];
+        adam.step(&mut params, &[1.0, 0.01], |_| 0.1, 1);
+        // After one step the bias-corrected moments are g and g^2: the floor is the root mean
+        // square gradient, sqrt((1 + 1e-4) / 2).
+        assert!((params[0] + 0.1).abs() < 1e-6, "{params:?}");
+        let floor = (0.5f32 * (1.0 + 1e-4)).sqrt();
+        assert!((params[1] + 0.1 * 0.01 / floor).abs() < 1e-6, "{params:?}");
+    }
+}

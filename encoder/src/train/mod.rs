@@ -216,10 +216,7 @@ impl Trainer {
     fn next_view(&mut self) -> usize {
         if self.order.is_empty() {
             self.order = (0..self.views.len()).collect();
-            for i in (1..self.order.len()).rev() {
-                let j = (self.rng.next_u64() % (i as u64 + 1)) as usize;
-                self.order.swap(i, j);
-            }
+            self.rng.shuffle(&mut self.order);
         }
         self.order.pop().expect("refilled above")
     }

@@ -52,6 +52,7 @@ const IMPORT_ONLY: &[&str] = &[
     "prune_faint",
     "search_steps",
     "refit_colours",
+    "refit_shapes",
 ];
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -131,6 +132,13 @@ pub(crate) struct EncodeArgs {
     /// the Gaussians the quality keeps).
     #[arg(long, requires = "importance_classes", conflicts_with = "target_bytes")]
     refit_colours: bool,
+    /// With --importance-classes: refit the scales, rotations, opacities and SH to the
+    /// quantized positions (and to the Gaussians pruned) so that the stream renders closest to
+    /// the model on the importance views: this many epochs of gradient descent over those
+    /// views, before they are quantized (and before --refit-colours). Not with --target-bytes.
+    #[arg(long, requires = "importance_classes", conflicts_with = "target_bytes", value_name = "EPOCHS",
+          value_parser = clap::value_parser!(u16).range(1..=100))]
+    refit_shapes: Option<u16>,
     /// Base representation.
     #[arg(long, value_enum, default_value = "anchor")]
     pub(crate) base: Base,
@@ -362,6 +370,7 @@ impl EncodeArgs {
             up: self.up,
             search_steps: self.search_steps,
             refit_colours: self.refit_colours,
+            refit_shapes: self.refit_shapes.map(usize::from),
         })
     }
 

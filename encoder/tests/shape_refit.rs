@@ -1,0 +1,51 @@
+//! `--refit-shapes`: scales, rotations, opacities and colours refitted to the quantized
+//! positions move the model closer to its own renders there, leave the positions the stream
+//! codes as they were, and give the colour refit a better start.
+
+use pwgs_decoder::gaussians::Gaussians;
+use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_decoder::raster::{RenderOptions, render};
+use pwgs_encoder::colour_refit::refit_colours;
+use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
+use pwgs_encoder::importance::blend_weights;
+use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_encoder::shape_refit::refit_shapes;
+
+#[test]
+fn refitted_shapes_render_closer_at_the_same_positions() {
+    let g = random_gaussians(&mut SplitMix64(22), 2000, 1, [-4.5, -2.5]);
+    let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0), axis_camera(160, 120, 150.0, 150.0, 70.0, 50.0)];
+    let options = RenderOptions::default();
+    let weights = blend_weights(&g, &cameras, &options);
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    // With faint Gaussians pruned: the gaps they leave are what the kept ones can fill.
+    let settings = QuantizerSettings::for_quality(8);
+    let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: true };
+    let (shaped, outcome) = refit_shapes(&g, coding, &context, (&cameras, &options), 6).unwrap();
+    assert_eq!(outcome.mse_per_epoch.len(), 6);
+    // Measured: 2.3e-4 -> 1.6e-4 over the six epochs.
+    let (first, last) = (outcome.mse_per_epoch[0], outcome.mse_per_epoch[5]);
+    assert!(last < 0.8 * first, "{outcome:?}");
+    assert_eq!(shaped.means, g.means, "the model's own positions go to the quantizer");
+
+    let stream = |model: &Gaussians| compress_to_size(model, coding, &context, None, usize::MAX).unwrap();
+    let (plain, refit) = (stream(&g), stream(&shaped));
+    let (a, b) = (plain.decoded.scene.plain_gaussians().unwrap(), refit.decoded.scene.plain_gaussians().unwrap());
+    assert_eq!(a.means, b.means, "the same Gaussians at the same decoded positions");
+
+    // The colours refitted after the shapes (to the input's renders) against refitted alone.
+    let colours = |model: &Gaussians| refit_colours((model, &g), coding, &context, (&cameras, &options), 8).unwrap().0;
+    let (colours_alone, both) = (stream(&colours(&g)), stream(&colours(&shaped)));
+    for camera in &cameras {
+        let truth = render(&g, camera, &options);
+        let score = |s: &pwgs_encoder::compress::Compressed| {
+            psnr(&render(s.decoded.scene.plain_gaussians().unwrap(), camera, &options), &truth)
+        };
+        // Measured: 34.50 -> 35.75 dB and 37.13 -> 38.34 dB with the shapes refitted; 37.70 ->
+        // 37.92 dB and 40.25 -> 40.53 dB for the colours refitted after them.
+        let (plain, refit) = (score(&plain), score(&refit));
+        assert!(refit > plain + 0.5, "shapes: {plain:.2} dB -> {refit:.2} dB");
+        let (colours_alone, both) = (score(&colours_alone), score(&both));
+        assert!(both > colours_alone + 0.1, "colours alone {colours_alone:.2} dB, after the shapes {both:.2} dB");
+    }
+}
