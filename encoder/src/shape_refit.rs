@@ -23,6 +23,7 @@ use serde::Serialize;
 
 use crate::backward::backward;
 use crate::compress::{Coding, CompressError, StreamContext, reconstruction};
+use crate::metrics::psnr::mse;
 use crate::train::adam::SliceAdam;
 
 /// The optimizer's rate for each attribute, as a fraction of that attribute's quantizer step
@@ -72,15 +73,15 @@ pub fn refit_shapes(
     for _ in 0..epochs {
         let mut order: Vec<usize> = (0..cameras.len()).collect();
         rng.shuffle(&mut order);
-        let mut squares = 0.0f64;
-        let mut values = 0usize;
-        for v in order {
+        // The views are all the same size: the mean of their errors is the pooled one.
+        let mut errors = 0.0f64;
+        for &v in &order {
             let rendered = rasterize(&model, &cameras[v], options);
-            let target = &targets[v].data;
-            let scale = 2.0 / target.len() as f32;
-            let v_color: Vec<f32> = rendered.color.data.iter().zip(target).map(|(c, t)| scale * (c - t)).collect();
-            squares += rendered.color.data.iter().zip(target).map(|(c, t)| f64::from(c - t).powi(2)).sum::<f64>();
-            values += target.len();
+            let target = &targets[v];
+            errors += mse(&rendered.color, target);
+            let scale = 2.0 / target.data.len() as f32;
+            let v_color: Vec<f32> =
+                rendered.color.data.iter().zip(&target.data).map(|(c, t)| scale * (c - t)).collect();
             let grads = backward(&model, &cameras[v], options, &rendered, &v_color);
             step += 1;
             scales.step(
@@ -98,7 +99,7 @@ pub fn refit_shapes(
             opacities.step(&mut model.opacity_logits, &grads.opacity_logits, |_| STEP_FRACTION * s.opacity_step, step);
             sh.step(&mut model.sh, &grads.sh, |i| sh_rates[i % k], step);
         }
-        mse_per_epoch.push(squares / values.max(1) as f64);
+        mse_per_epoch.push(errors / order.len().max(1) as f64);
     }
 
     let mut refitted = g.clone();
