@@ -18,11 +18,12 @@ use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::{Gaussians, sh_band};
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::{RenderOptions, rasterize, render};
+use pwgs_decoder::rgb_image::RgbImage;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::backward::backward;
-use crate::compress::{Coding, CompressError, StreamContext, reconstruction};
+use crate::compress::{Coding, CompressError, QuantizerSettings, StreamContext, reconstruction};
 use crate::metrics::psnr::mse;
 use crate::train::adam::SliceAdam;
 
@@ -41,12 +42,23 @@ const ORDER_SEED: u64 = 0x5eed_5eed;
 pub struct ShapeRefitOutcome {
     pub views: usize,
     pub gaussians: usize,
+    /// Gaussians whose shapes were rounded in turns ([`ROUNDING_TURNS`]).
+    pub rounded: usize,
     pub mse_per_epoch: Vec<f64>,
 }
 
+/// Turns in which the refitted shapes are rounded, as the colour refit rounds its colours:
+/// after the epochs, every `ROUNDING_TURNS`-th kept Gaussian's scales, rotation and opacity are
+/// set to what the stream will hold and [`TURN_EPOCHS`] more epochs refit the others around
+/// them; the last turn's are rounded by the stream itself.
+const ROUNDING_TURNS: usize = 2;
+
+/// Epochs after each rounding turn.
+const TURN_EPOCHS: usize = 2;
+
 /// `g` with the scales, rotations, opacities and SH of the Gaussians `coding` keeps refitted
 /// over `epochs` passes through `cameras` (each in a shuffled order, the same on every run), so
-/// that, at their quantized positions, they render closest to `g`.
+/// that, at their quantized positions, they render closest to `g`; then rounded in turns.
 pub fn refit_shapes(
     g: &Gaussians,
     coding: Coding,
@@ -58,50 +70,118 @@ pub fn refit_shapes(
     let mut model = subset(g, &keep);
     model.means = decoded.means;
     let targets: Vec<_> = cameras.par_iter().map(|camera| render(g, camera, options)).collect();
-
-    let s = coding.settings;
-    let k = g.coeffs_per_channel() * 3;
-    let sh_rates: Vec<f32> =
-        (0..k).map(|i| STEP_FRACTION * if i < 3 { s.dc_step } else { s.band_steps[sh_band(i / 3) - 1] }).collect();
-    let mut scales = SliceAdam::new(model.len() * 3);
-    let mut rotations = SliceAdam::new(model.len() * 4);
-    let mut opacities = SliceAdam::new(model.len());
-    let mut sh = SliceAdam::new(model.sh.len());
-    let mut rng = SplitMix64(ORDER_SEED);
-    let mut mse_per_epoch = Vec::with_capacity(epochs);
-    let mut step = 0;
+    let mut fit = ShapeFit::new(model, coding, (cameras, options, &targets));
+    let mut rounded = vec![false; keep.len()];
     for _ in 0..epochs {
+        fit.epoch(&rounded);
+    }
+    // The rounded Gaussians render as the stream holds them but keep the values that quantize
+    // to it: their decoded rotation can sit in another of its equivalent frames (when two are
+    // nearly as close to the identity), which would quantize anew.
+    let mut unrounded = Vec::new();
+    for turn in 0..ROUNDING_TURNS - 1 {
+        // What the stream holds now; a Gaussian the refit made invisible is left free.
+        let (coded_keep, coded) = reconstruction(&write_back(g, &keep, &fit.model), coding, context)?;
+        for r in (turn..keep.len()).step_by(ROUNDING_TURNS) {
+            if let Ok(c) = coded_keep.binary_search(&keep[r]) {
+                let m = &mut fit.model;
+                unrounded.push((r, m.log_scales[r], m.rotations[r], m.opacity_logits[r]));
+                m.log_scales[r] = coded.log_scales[c];
+                m.rotations[r] = coded.rotations[c];
+                m.opacity_logits[r] = coded.opacity_logits[c];
+                rounded[r] = true;
+            }
+        }
+        for _ in 0..TURN_EPOCHS {
+            fit.epoch(&rounded);
+        }
+    }
+    let outcome = ShapeRefitOutcome {
+        views: cameras.len(),
+        gaussians: keep.len(),
+        rounded: unrounded.len(),
+        mse_per_epoch: fit.mse_per_epoch,
+    };
+    let mut model = fit.model;
+    for (r, log_scales, rotation, opacity_logit) in unrounded {
+        (model.log_scales[r], model.rotations[r], model.opacity_logits[r]) = (log_scales, rotation, opacity_logit);
+    }
+    Ok((write_back(g, &keep, &model), outcome))
+}
+
+/// The optimizer's state over one model at its decoded positions.
+struct ShapeFit<'a> {
+    model: Gaussians,
+    views: (&'a [Camera], &'a RenderOptions, &'a [RgbImage]),
+    settings: &'a QuantizerSettings,
+    sh_rates: Vec<f32>,
+    scales: SliceAdam,
+    rotations: SliceAdam,
+    opacities: SliceAdam,
+    sh: SliceAdam,
+    order: SplitMix64,
+    step: u32,
+    mse_per_epoch: Vec<f64>,
+}
+
+impl<'a> ShapeFit<'a> {
+    fn new(model: Gaussians, coding: Coding<'a>, views: (&'a [Camera], &'a RenderOptions, &'a [RgbImage])) -> Self {
+        let s = coding.settings;
+        let k = model.coeffs_per_channel() * 3;
+        let sh_rates =
+            (0..k).map(|i| STEP_FRACTION * if i < 3 { s.dc_step } else { s.band_steps[sh_band(i / 3) - 1] }).collect();
+        Self {
+            scales: SliceAdam::new(model.len() * 3),
+            rotations: SliceAdam::new(model.len() * 4),
+            opacities: SliceAdam::new(model.len()),
+            sh: SliceAdam::new(model.sh.len()),
+            model,
+            views,
+            settings: s,
+            sh_rates,
+            order: SplitMix64(ORDER_SEED),
+            step: 0,
+            mse_per_epoch: Vec::new(),
+        }
+    }
+
+    /// One pass through the views in a shuffled order; the shapes of the Gaussians `rounded`
+    /// holds stay (their SH still move: the colour refit rounds those).
+    fn epoch(&mut self, rounded: &[bool]) {
+        let (cameras, options, targets) = self.views;
+        let s = self.settings;
+        let k = self.model.coeffs_per_channel() * 3;
+        let free = |per: usize, rate: f32| move |i: usize| if rounded[i / per] { 0.0 } else { rate };
         let mut order: Vec<usize> = (0..cameras.len()).collect();
-        rng.shuffle(&mut order);
+        self.order.shuffle(&mut order);
         // The views are all the same size: the mean of their errors is the pooled one.
         let mut errors = 0.0f64;
         for &v in &order {
-            let rendered = rasterize(&model, &cameras[v], options);
+            let rendered = rasterize(&self.model, &cameras[v], options);
             let target = &targets[v];
             errors += mse(&rendered.color, target);
             let scale = 2.0 / target.data.len() as f32;
             let v_color: Vec<f32> =
                 rendered.color.data.iter().zip(&target.data).map(|(c, t)| scale * (c - t)).collect();
-            let grads = backward(&model, &cameras[v], options, &rendered, &v_color);
-            step += 1;
-            scales.step(
-                model.log_scales.as_flattened_mut(),
-                grads.log_scales.as_flattened(),
-                |_| STEP_FRACTION * s.log_scale_step,
-                step,
-            );
-            rotations.step(
-                model.rotations.as_flattened_mut(),
-                grads.rotations.as_flattened(),
-                |_| STEP_FRACTION * s.rotation_step,
-                step,
-            );
-            opacities.step(&mut model.opacity_logits, &grads.opacity_logits, |_| STEP_FRACTION * s.opacity_step, step);
-            sh.step(&mut model.sh, &grads.sh, |i| sh_rates[i % k], step);
+            let grads = backward(&self.model, &cameras[v], options, &rendered, &v_color);
+            self.step += 1;
+            let model = &mut self.model;
+            let step = self.step;
+            let scales = free(3, STEP_FRACTION * s.log_scale_step);
+            self.scales.step(model.log_scales.as_flattened_mut(), grads.log_scales.as_flattened(), scales, step);
+            let rotations = free(4, STEP_FRACTION * s.rotation_step);
+            self.rotations.step(model.rotations.as_flattened_mut(), grads.rotations.as_flattened(), rotations, step);
+            let opacities = free(1, STEP_FRACTION * s.opacity_step);
+            self.opacities.step(&mut model.opacity_logits, &grads.opacity_logits, opacities, step);
+            self.sh.step(&mut model.sh, &grads.sh, |i| self.sh_rates[i % k], step);
         }
-        mse_per_epoch.push(errors / order.len().max(1) as f64);
+        self.mse_per_epoch.push(errors / order.len().max(1) as f64);
     }
+}
 
+/// `g` with the kept Gaussians' shapes and SH from `model` (row `r` is Gaussian `keep[r]`).
+fn write_back(g: &Gaussians, keep: &[usize], model: &Gaussians) -> Gaussians {
+    let k = g.coeffs_per_channel() * 3;
     let mut refitted = g.clone();
     for (r, &i) in keep.iter().enumerate() {
         refitted.log_scales[i] = model.log_scales[r];
@@ -109,7 +189,7 @@ pub fn refit_shapes(
         refitted.opacity_logits[i] = model.opacity_logits[r];
         refitted.sh[i * k..(i + 1) * k].copy_from_slice(model.sh_of(r));
     }
-    Ok((refitted, ShapeRefitOutcome { views: cameras.len(), gaussians: model.len(), mse_per_epoch }))
+    refitted
 }
 
 /// The Gaussians `keep` (indices into `g`), in that order.
