@@ -50,7 +50,8 @@ pub struct ShapeRefitOutcome {
 /// Turns in which the refitted shapes are rounded, as the colour refit rounds its colours:
 /// after the epochs, every `ROUNDING_TURNS`-th kept Gaussian's scales, rotation and opacity are
 /// set to what the stream will hold and [`TURN_EPOCHS`] more epochs refit the others around
-/// them; the last turn's are rounded by the stream itself.
+/// them; the last turn's are rounded by the stream itself. On biker at quality 10 (search and
+/// both refits) halves lift the orbit from 54.51 to 54.59 dB for 0.1% more bytes.
 const ROUNDING_TURNS: usize = 2;
 
 /// Epochs after each rounding turn.
