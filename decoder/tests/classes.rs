@@ -39,6 +39,7 @@ fn content(n: usize, seed: u64) -> PlainGaussians {
         band_steps: vec![0.03],
         sh_rest: (0..n * 9).map(|_| int(2.0)).collect(),
         colour_differences: false,
+        adaptive: false,
         classes: Some(classes),
     }
 }
@@ -109,6 +110,15 @@ fn classes_round_trip_in_the_octree_order() {
     let again = decoded_content(&bytes);
     assert!(again.colour_differences);
     assert_eq!(again.dequantize(), decoded.dequantize(), "differences changed the Gaussians");
+    // And with adaptive trees (SPEC.md 6.7), a tree model per class and channel.
+    let trees = PlainGaussians { adaptive: true, ..both };
+    let bytes = encode(&trees);
+    let mask = Container::parse(&bytes).unwrap().section(Tag(*b"ADPT")).map(|s| s.payload.to_vec());
+    assert!(mask.is_some_and(|m| m[0] != 0), "no block took trees");
+    let again = decoded_content(&bytes);
+    assert!(again.adaptive);
+    assert_eq!(again.dequantize(), decoded.dequantize(), "trees changed the Gaussians");
+    assert_eq!(encode(&again), bytes);
 }
 
 #[test]

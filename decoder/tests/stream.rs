@@ -2,7 +2,7 @@
 //! mutation of a valid stream must give a clean error (or a valid decode), never a panic, a
 //! hang or a huge allocation.
 
-use pwgs_bitstream::{MAGIC, Tag};
+use pwgs_bitstream::{Container, MAGIC, Tag};
 use pwgs_decoder::gaussians::sh_coeff_count;
 use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::header::{BaseKind, Header, MAX_GAUSSIANS};
@@ -48,6 +48,7 @@ fn random_content(n: usize, degree: u32, seed: u64) -> PlainGaussians {
         band_steps: [0.03, 0.04, 0.05][..degree as usize].to_vec(),
         sh_rest: (0..n * rest).map(|_| int(&mut rng, 1.0)).collect(),
         colour_differences: false,
+        adaptive: false,
     }
 }
 
@@ -84,13 +85,31 @@ fn reordered(content: &PlainGaussians) -> PlainGaussians {
 #[test]
 fn every_degree_round_trips_exactly() {
     for degree in 0..=3 {
-        let content = random_content(700, degree, degree as u64 + 1);
-        let bytes = encode(&content);
-        let decoded = stream::decode(&bytes).unwrap();
-        assert_eq!(decoded.header, header_for(&content));
-        assert_eq!(decoded.content, Content::Plain(Box::new(reordered(&content))), "degree {degree}");
-        assert_eq!(decoded.scene.base, decoded.content.dequantize());
-        assert!(decoded.scene.plain_gaussians().unwrap().is_consistent());
+        for adaptive in [false, true] {
+            let content = PlainGaussians { adaptive, ..random_content(700, degree, degree as u64 + 1) };
+            let bytes = encode(&content);
+            let decoded = stream::decode(&bytes).unwrap();
+            assert_eq!(decoded.header, header_for(&content));
+            let expected = Content::Plain(Box::new(reordered(&content)));
+            assert_eq!(decoded.content, expected, "degree {degree}, adaptive {adaptive}");
+            assert_eq!(decoded.scene.base, decoded.content.dequantize());
+            assert!(decoded.scene.plain_gaussians().unwrap().is_consistent());
+        }
+    }
+}
+
+/// With `ADPT` (SPEC.md 6.7) each block takes trees only where they code smaller: never a
+/// larger stream than tables alone, and on 700 random Gaussians (whose tables cost about as
+/// much as their values) smaller.
+#[test]
+fn adaptive_trees_never_cost_more_than_tables() {
+    for degree in [0, 2] {
+        let content = random_content(700, degree, 40 + u64::from(degree));
+        let tables = encode(&content).len();
+        let bytes = encode(&PlainGaussians { adaptive: true, ..content });
+        let adpt = Container::parse(&bytes).unwrap().section(Tag(*b"ADPT")).map(|s| s.payload.to_vec());
+        assert!(bytes.len() < tables, "degree {degree}: {} bytes with trees, {tables} without", bytes.len());
+        assert!(adpt.is_some_and(|mask| mask.len() == 1 && mask[0] != 0), "degree {degree}");
     }
 }
 
@@ -180,11 +199,14 @@ fn container_crc_matches_an_independent_crc32c() {
 /// decoders. Each decode must return, Ok or Err, without panicking.
 #[test]
 fn mutated_streams_never_panic() {
-    let original = encode(&random_content(400, 2, 21));
+    // Every other pair of rounds mutates the stream whose blocks are coded with trees.
+    let content = random_content(400, 2, 21);
+    let originals = [encode(&content), encode(&PlainGaussians { adaptive: true, ..content })];
     let mut rng = SplitMix64(99);
     let mut outcomes = [0usize; 2];
     let start = std::time::Instant::now();
     for round in 0..3000 {
+        let original = &originals[round / 2 % 2];
         let mut b = original.clone();
         let pick = |rng: &mut SplitMix64, len: usize| (rng.uniform(0.0, 1.0) * len as f32) as usize % len.max(1);
         for _ in 0..1 + round % 4 {
@@ -214,10 +236,10 @@ fn mutated_streams_never_panic() {
         if round % 3 == 2 {
             // Rewrite one byte inside a section's payload, keeping the container valid.
             let tags: Vec<Tag> =
-                pwgs_bitstream::Container::parse(&original).unwrap().sections.iter().map(|s| s.tag).collect();
+                pwgs_bitstream::Container::parse(original).unwrap().sections.iter().map(|s| s.tag).collect();
             let tag = tags[pick(&mut rng, tags.len())];
             let (at, value) = (rng.next_u64() as usize, (rng.next_u64() & 0xff) as u8);
-            b = with_payload(&original, tag, |p| {
+            b = with_payload(original, tag, |p| {
                 if !p.is_empty() {
                     let i = at % p.len();
                     p[i] = value;

@@ -451,6 +451,7 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
         band_steps: s.band_steps[..degree as usize].to_vec(),
         sh_rest,
         colour_differences: false,
+        adaptive: true,
         classes,
     }
 }

@@ -123,6 +123,7 @@ pub fn gaussians(
         band_steps: steps.bands,
         sh_rest: (0..n * rest).map(|_| draws.i32(ranges.sh_rest)).collect(),
         colour_differences: false,
+        adaptive: false,
     }
 }
 
@@ -158,6 +159,34 @@ pub fn classed_gaussians(
     let (steps, ranges) = ordinary(degree);
     let mut content = gaussians(&mut draws, unit_cube(base_depth), positions, degree, steps, &ranges);
     content.classes = Some(classes);
+    content
+}
+
+/// `content` with every value following its position: a ramp across the cube over a quarter
+/// of its range, plus noise of +/- 2, and every rotation's largest component `w` (index 0).
+/// Neighbours in octree order then hold similar values, as a captured scene's do, which is
+/// where adaptive trees (SPEC.md section 6.7) code smaller than tables.
+pub fn smooth(mut content: PlainGaussians, seed: u64) -> PlainGaussians {
+    let mut draws = Draws::new(seed);
+    let depth = content.grid.depth + content.refine();
+    let ramps: Vec<i64> =
+        content.positions.iter().map(|p| p.iter().map(|&c| i64::from(c >> (depth - 8))).sum::<i64>()).collect();
+    let (_, ranges) = ordinary(content.sh_degree);
+    let mut value = |i: usize, [lo, hi]: [i32; 2]| {
+        let (lo, hi) = (i64::from(lo), i64::from(hi));
+        (lo + ramps[i] * (hi - lo) / (4 * 765) + draws.int(-2, 2)).clamp(lo, hi) as i32
+    };
+    let rest = content.sh_rest.len() / content.len().max(1);
+    for i in 0..content.len() {
+        content.log_scales[i] = std::array::from_fn(|_| value(i, ranges.log_scale));
+        content.rotations[i] =
+            QuantizedRotation { largest: 0, rest: std::array::from_fn(|_| value(i, ranges.rotation)) };
+        content.opacity_logits[i] = value(i, ranges.opacity);
+        content.sh_dc[i] = std::array::from_fn(|_| value(i, ranges.dc));
+        for v in &mut content.sh_rest[i * rest..(i + 1) * rest] {
+            *v = value(i, ranges.sh_rest);
+        }
+    }
     content
 }
 

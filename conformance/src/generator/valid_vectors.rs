@@ -6,11 +6,12 @@ use pwgs_bitstream::{FieldWriter, Tag, write_container};
 use pwgs_decoder::stream;
 use pwgs_decoder::stream::entropy::{FrequencyTable, MAX_MAGNITUDE};
 use pwgs_decoder::stream::plain::{self, PlainGaussians, PositionGrid};
+use pwgs_decoder::stream::trees::ADAPTIVE;
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 
 use super::Vector;
-use super::content::{self, BlockValues, Draws, Ranges, Steps, classed_gaussians, header, ordinary_gaussians};
+use super::content::{self, BlockValues, Draws, Ranges, Steps, classed_gaussians, header, ordinary_gaussians, smooth};
 use super::raw::{Sections, block, flat_table};
 
 /// Largest quantized magnitude a stream may hold: 2^24 - 1.
@@ -251,9 +252,56 @@ pub fn vectors() -> Result<Vec<Vector>> {
             stream: encode(&classed_gaussians(72, 40, 0, (3, 2, 22)), None),
             cameras: &["front"],
         },
+        Vector {
+            name: "adaptive-trees",
+            description: "1500 Gaussians of degree 1 in 3 importance classes, values following their positions, \
+                          with CDIF and ADPT naming every block: 5 x 3 x C tree models (up to 8 trees each, \
+                          chosen by the previous value of the class and channel), ROTN's index slots of one \
+                          value taking no bits."
+                .into(),
+            clauses: vec!["S6.7-trees", "S6.7-one-value"],
+            stream: adaptive(
+                PlainGaussians { colour_differences: true, ..smooth(classed_gaussians(73, 1500, 1, (3, 2, 8)), 74) },
+                0b1_1111,
+            )?,
+            cameras: &["front", "side"],
+        },
+        Vector {
+            name: "adaptive-some-blocks",
+            description: "300 Gaussians of degree 2 with ADPT naming SCAL, OPAC and COLR (bits 0, 2, 3: 0x0d), \
+                          coded with trees; ROTN and SHRS keep their tables."
+                .into(),
+            clauses: vec!["S6.7-trees", "S6.7-blocks"],
+            stream: some_blocks(ordinary_gaussians(75, 300, 2))?,
+            cameras: &["front"],
+        },
     ];
     vectors.extend(wrapped());
     Ok(vectors)
+}
+
+/// The stream of `content` with adaptive trees where they code smaller, which must be the
+/// blocks `mask` names (ADPT's payload, SPEC.md section 6.7).
+pub fn adaptive(content: PlainGaussians, mask: u8) -> Result<Vec<u8>> {
+    let stream = encode(&PlainGaussians { adaptive: true, ..content }, None);
+    let payload = Sections::of(&stream).payload(ADAPTIVE).clone();
+    ensure!(payload == [mask], "ADPT holds {payload:?}, expected [{mask:#04x}]");
+    Ok(stream)
+}
+
+/// The stream of `content` with trees in `SCAL`, `OPAC` and `COLR` only: the writer's stream
+/// with trees in every block, `ROTN` and `SHRS` taken from its stream without trees.
+fn some_blocks(content: PlainGaussians) -> Result<Vec<u8>> {
+    let trees = adaptive(content.clone(), 0b1_1111)?;
+    let tables = Sections::of(&encode(&content, None));
+    let mut mixed = Sections::of(&trees);
+    for tag in [plain::ROTATIONS, plain::SH_REST] {
+        *mixed.payload(tag) = tables.list[tables.index(tag)].1.clone();
+    }
+    *mixed.payload(ADAPTIVE) = vec![0b0_1101];
+    let mixed = mixed.seal();
+    ensure!(stream::decode(&mixed)?.scene.attribute_hash() == stream::decode(&trees)?.scene.attribute_hash());
+    Ok(mixed)
 }
 
 /// The wrapper vectors: every input combination, widths 1 and 64.

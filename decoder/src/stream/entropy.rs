@@ -52,6 +52,8 @@ pub enum EntropyError {
     EscapeOutOfRange(i64),
     #[error("escaped value {0} lies inside the table's range (it must be coded as its own symbol)")]
     EscapeInRange(i64),
+    #[error("tree symbol {offset} is outside the tree's {size} values")]
+    OutsideTree { offset: u32, size: u32 },
     #[error("{0} unread bytes after the last symbol")]
     Unread(usize),
 }
@@ -152,7 +154,7 @@ impl FrequencyTable {
 /// Checks that a table of `n` symbols from `lo` is within the spec's bounds: 1 to
 /// [`MAX_TABLE_SYMBOLS`] symbols covering values of magnitude below 2^24. Computed in i64: `lo`
 /// comes from the stream and may be near `i32::MAX`.
-fn check_range(lo: i32, n: usize) -> Result<(), String> {
+pub(super) fn check_range(lo: i32, n: usize) -> Result<(), String> {
     if n == 0 || n > MAX_TABLE_SYMBOLS as usize {
         return Err(format!("{n} symbols, expected 1..={MAX_TABLE_SYMBOLS}"));
     }

@@ -10,6 +10,7 @@ pub mod gaussian_model;
 pub mod header;
 pub mod octree;
 pub mod plain;
+pub mod trees;
 pub mod wrap;
 
 use pwgs_bitstream::{Container, FieldError, SECTION_OVERHEAD, StreamError, Tag, write_container};
@@ -48,11 +49,12 @@ impl DecodeError {
 }
 
 /// Critical sections a plain-3DGS stream may hold.
-const PLAIN_SECTIONS: [Tag; 10] = [
+const PLAIN_SECTIONS: [Tag; 11] = [
     Tag::HEAD,
     plain::POSITIONS,
     classes::CLASSES,
     colour_differences::COLOUR_DIFFERENCES,
+    trees::ADAPTIVE,
     plain::SCALES,
     plain::ROTATIONS,
     plain::OPACITIES,

@@ -12,6 +12,7 @@ use super::colour_differences::{self, COLOUR_DIFFERENCES};
 use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::{self, MAX_DEPTH, OctreeError};
+use super::trees::{self, ADAPTIVE, TreeModel, Trees};
 use crate::gaussians::{Gaussians, sh_band, sh_coeff_count};
 
 pub const POSITIONS: Tag = Tag(*b"POSN");
@@ -95,6 +96,9 @@ pub struct PlainGaussians {
     /// Code every colour triple as (r - g, g, b - g) (section `CDIF`, SPEC.md 6.6); see
     /// [`Self::colour_differences_fit`].
     pub colour_differences: bool,
+    /// Code each attribute block with adaptive trees where that is smaller than with its
+    /// tables (section `ADPT`, SPEC.md 6.7; the section is written whichever blocks use them).
+    pub adaptive: bool,
 }
 
 impl PlainGaussians {
@@ -156,21 +160,30 @@ impl PlainGaussians {
             sections.push((CLASSES, classes.write(&self.positions, &order)));
         }
         let classes = self.classes.as_ref();
-        let block = |steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
-            let mut w = FieldWriter::new();
-            steps.iter().for_each(|&s| w.f32(s));
-            write_block(&mut w, Models::Tables, (&order, classes), channels, value);
-            w.into_bytes()
+        // Each block with tables, and with trees when those are asked for, fit, and smaller.
+        let mut adaptive = [false; 5];
+        let mut block = |tag: Tag, steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
+            let write = |models| {
+                let mut w = FieldWriter::new();
+                steps.iter().for_each(|&s| w.f32(s));
+                write_block(&mut w, models, (&order, classes), channels, value).then(|| w.into_bytes())
+            };
+            let tables = write(Models::Tables).expect("tables hold any values");
+            let k = trees::BLOCKS.iter().position(|&b| b == tag).expect("an attribute block");
+            match self.adaptive.then(|| write(Models::Trees)).flatten().filter(|t| t.len() < tables.len()) {
+                Some(trees) => {
+                    adaptive[k] = true;
+                    (tag, trees)
+                }
+                None => (tag, tables),
+            }
         };
-        sections.push((SCALES, block(&[self.scale_step], 3, &|i, c| self.log_scales[i][c])));
-        sections.push((
-            ROTATIONS,
-            block(&[self.rotation_step], 4, &|i, c| {
-                let r = &self.rotations[i];
-                if c == 0 { i32::from(r.largest) } else { r.rest[c - 1] }
-            }),
-        ));
-        sections.push((OPACITIES, block(&[self.opacity_step], 1, &|i, _| self.opacity_logits[i])));
+        sections.push(block(SCALES, &[self.scale_step], 3, &|i, c| self.log_scales[i][c]));
+        sections.push(block(ROTATIONS, &[self.rotation_step], 4, &|i, c| {
+            let r = &self.rotations[i];
+            if c == 0 { i32::from(r.largest) } else { r.rest[c - 1] }
+        }));
+        sections.push(block(OPACITIES, &[self.opacity_step], 1, &|i, _| self.opacity_logits[i]));
         let rest = self.rest_per_gaussian();
         let triple = |v: &[i32], c: usize| -> i32 {
             let t = &v[c / 3 * 3..][..3];
@@ -180,9 +193,12 @@ impl PlainGaussians {
             assert!(self.colour_differences_fit(), "colour differences beyond 2^24");
             sections.push((COLOUR_DIFFERENCES, vec![]));
         }
-        sections.push((COLORS, block(&[self.dc_step], 3, &|i, c| triple(&self.sh_dc[i], c))));
+        sections.push(block(COLORS, &[self.dc_step], 3, &|i, c| triple(&self.sh_dc[i], c)));
         if rest > 0 {
-            sections.push((SH_REST, block(&self.band_steps, rest, &|i, c| triple(&self.sh_rest[i * rest..], c))));
+            sections.push(block(SH_REST, &self.band_steps, rest, &|i, c| triple(&self.sh_rest[i * rest..], c)));
+        }
+        if self.adaptive {
+            sections.push((ADAPTIVE, trees::payload(adaptive)));
         }
         Ok(sections)
     }
@@ -218,12 +234,19 @@ impl PlainGaussians {
             Some(s) => Some(ImportanceClasses::read(s.payload, grid.depth, &mut positions)?),
             None => None,
         };
+        let adaptive = match container.section(ADAPTIVE) {
+            Some(s) => Some(trees::read_payload(s.payload, [true, true, true, true, rest > 0])?),
+            None => None,
+        };
+        let models = |k: usize| match adaptive {
+            Some(used) if used[k] => Models::Trees,
+            _ => Models::Tables,
+        };
         let rows = Rows { count, classes: classes.as_ref() };
-        let decoded: Vec<Result<Block, DecodeError>> = blocks
-            .par_iter()
+        let decoded: Vec<Result<Block, DecodeError>> = (blocks.par_iter().enumerate())
             .zip(block_payloads)
-            .map(|(&(tag, steps, channels, check), bytes)| match bytes {
-                Some(bytes) => read_block(tag, bytes, (Models::Tables, steps, channels, check), rows),
+            .map(|((k, &(tag, steps, channels, check)), bytes)| match bytes {
+                Some(bytes) => read_block(tag, bytes, (models(k), steps, channels, check), rows),
                 None => Ok((vec![], vec![])),
             })
             .collect();
@@ -262,6 +285,7 @@ impl PlainGaussians {
             band_steps,
             sh_rest,
             colour_differences: differences.is_some(),
+            adaptive: adaptive.is_some(),
         })
     }
 }
@@ -322,65 +346,118 @@ fn check_rotation_index(channel: usize, value: i32) -> Result<(), String> {
 }
 
 /// How a block's channels are modelled: a frequency table each (SPEC.md section 5.3, the plain
-/// base) or a quantized Gaussian each (section 5.4, the anchor base).
+/// base), a quantized Gaussian each (section 5.4, the anchor base), or adaptive trees (section
+/// 6.7, the plain base with `ADPT`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Models {
     Tables,
     Gaussians,
+    Trees,
+}
+
+/// A block's models as they code its values, one per slot (class and channel).
+enum Coders {
+    Tables(Vec<FrequencyTable>),
+    Trees(Trees),
 }
 
 impl Models {
-    /// Fits the model of each channel, writes it, and returns its table.
-    fn fit_and_write(self, w: &mut FieldWriter, values: &[i32]) -> FrequencyTable {
+    /// Fits the model of each slot to its values (in coding order) and writes them; `None`
+    /// (and nothing written) when trees cannot hold them.
+    fn fit_and_write(self, w: &mut FieldWriter, slots: &[Vec<i32>]) -> Option<Coders> {
         match self {
-            Models::Tables => {
-                let table = FrequencyTable::fit(values);
-                table.write(w);
-                table
-            }
-            Models::Gaussians => {
-                let model = GaussianModel::fit(values);
-                model.write(w);
-                model.table()
+            Models::Tables => Some(Coders::Tables(
+                slots
+                    .iter()
+                    .map(|values| {
+                        let table = FrequencyTable::fit(values);
+                        table.write(w);
+                        table
+                    })
+                    .collect(),
+            )),
+            Models::Gaussians => Some(Coders::Tables(
+                slots
+                    .iter()
+                    .map(|values| {
+                        let model = GaussianModel::fit(values);
+                        model.write(w);
+                        model.table()
+                    })
+                    .collect(),
+            )),
+            Models::Trees => {
+                let previous = |values: &[i32]| -> Vec<i32> {
+                    std::iter::once(0).chain(values.iter().copied()).take(values.len()).collect()
+                };
+                let models =
+                    slots.iter().map(|v| TreeModel::fit(v, &previous(v))).collect::<Option<Vec<TreeModel>>>()?;
+                if !Trees::fit_in_a_block(&models) {
+                    return None;
+                }
+                models.iter().for_each(|m| m.write(w));
+                Some(Coders::Trees(Trees::new(models)))
             }
         }
     }
 
-    fn read(self, r: &mut FieldReader) -> Result<FrequencyTable, FieldError> {
+    fn read(self, r: &mut FieldReader, slots: usize) -> Result<Coders, FieldError> {
         match self {
-            Models::Tables => FrequencyTable::read(r),
-            Models::Gaussians => GaussianModel::read(r).map(GaussianModel::table),
+            Models::Tables => {
+                Ok(Coders::Tables((0..slots).map(|_| FrequencyTable::read(r)).collect::<Result<_, _>>()?))
+            }
+            Models::Gaussians => Ok(Coders::Tables(
+                (0..slots).map(|_| GaussianModel::read(r).map(GaussianModel::table)).collect::<Result<_, _>>()?,
+            )),
+            Models::Trees => Trees::read(r, slots).map(Coders::Trees),
+        }
+    }
+}
+
+impl Coders {
+    fn encode(&mut self, coder: &mut SymbolEncoder, slot: usize, value: i32) {
+        match self {
+            Coders::Tables(tables) => coder.value(&tables[slot], value),
+            Coders::Trees(trees) => trees.encode(coder, slot, value),
+        }
+    }
+
+    fn decode(&mut self, coder: &mut SymbolDecoder, slot: usize) -> Result<i32, EntropyError> {
+        match self {
+            Coders::Tables(tables) => coder.value(&tables[slot]),
+            Coders::Trees(trees) => trees.decode(coder, slot),
         }
     }
 }
 
 /// Block syntax: one model per channel (per class and channel, class-major, with importance
 /// classes), then the range-coded values, row by row (in `order`), channel by channel, each
-/// with its row's class's model.
+/// with its row's class's model. False, with nothing written, when trees cannot hold the
+/// values (a range wider than a tree's, or too many nodes).
 pub(super) fn write_block(
     w: &mut FieldWriter,
     models: Models,
     (order, classes): (&[usize], Option<&ImportanceClasses>),
     channels: usize,
     value: &dyn Fn(usize, usize) -> i32,
-) {
+) -> bool {
     let class_of = |i: usize| classes.map_or(0, |c| usize::from(c.of[i]));
     let groups = classes.map_or(1, |c| c.factors.len());
-    let tables: Vec<FrequencyTable> = (0..groups * channels)
-        .map(|t| {
-            let (group, c) = (t / channels, t % channels);
-            let values: Vec<i32> = order.iter().filter(|&&i| class_of(i) == group).map(|&i| value(i, c)).collect();
-            models.fit_and_write(w, &values)
-        })
-        .collect();
+    let mut slots = vec![Vec::new(); groups * channels];
+    for &i in order {
+        for c in 0..channels {
+            slots[class_of(i) * channels + c].push(value(i, c));
+        }
+    }
+    let Some(mut coders) = models.fit_and_write(w, &slots) else { return false };
     let mut coder = SymbolEncoder::new();
     for &i in order {
-        let row_tables = &tables[class_of(i) * channels..][..channels];
-        for (c, table) in row_tables.iter().enumerate() {
-            coder.value(table, value(i, c));
+        for c in 0..channels {
+            coders.encode(&mut coder, class_of(i) * channels + c, value(i, c));
         }
     }
     w.extend(&coder.finish());
+    true
 }
 
 /// Whether a step is usable: positive, and small enough that every quantized value (below
@@ -430,14 +507,14 @@ pub(super) fn read_block(
         }
     }
     let groups = factors.len().max(1);
-    let tables = (0..groups * channels).map(|_| models.read(&mut r)).collect::<Result<Vec<_>, FieldError>>()?;
+    let mut coders = models.read(&mut r, groups * channels)?;
     let coded = |e: EntropyError| DecodeError::coded(tag, e);
     let mut coder = SymbolDecoder::new(r.rest()).map_err(coded)?;
     let mut values = Vec::with_capacity(rows.count * channels);
     for i in 0..rows.count {
         let class = rows.classes.map_or(0, |c| usize::from(c.of[i]));
-        for (channel, table) in tables[class * channels..][..channels].iter().enumerate() {
-            let value = coder.value(table).map_err(coded)?;
+        for channel in 0..channels {
+            let value = coders.decode(&mut coder, class * channels + channel).map_err(coded)?;
             check(channel, value).map_err(|problem| DecodeError::invalid(tag, problem))?;
             values.push(value);
         }

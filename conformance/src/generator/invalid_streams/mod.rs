@@ -8,6 +8,7 @@ mod container;
 mod differences;
 mod order;
 mod sections;
+mod trees;
 
 use pwgs_bitstream::Tag;
 use pwgs_decoder::stream::plain::{COLORS, OPACITIES, ROTATIONS, SCALES, SH_REST};
@@ -29,6 +30,7 @@ pub fn refusals() -> Vec<Refusal> {
     order::order(&bases, &mut cases);
     classes::classes(&mut cases);
     differences::differences(&mut cases);
+    trees::trees(&mut cases);
     cases.0
 }
 
