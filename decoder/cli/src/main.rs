@@ -23,6 +23,7 @@ use pwgs_decoder::stream;
 use pwgs_decoder::stream::anchor_context::CONTEXT;
 use pwgs_decoder::stream::classes::CLASSES;
 use pwgs_decoder::stream::header::{BaseKind, Header};
+use pwgs_decoder::stream::trees::{ADAPTIVE, BLOCKS};
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::wrapper::residual_picture;
 
@@ -172,6 +173,14 @@ fn info(path: &Path) -> Result<()> {
                 c.drops
             );
         }
+    }
+    if let Some(section) = container.section(ADAPTIVE) {
+        // The payload's bits as stored (checked when the stream is decoded, not here).
+        let mask = section.payload.first().copied().unwrap_or(0);
+        let named: Vec<String> =
+            BLOCKS.iter().enumerate().filter(|&(k, _)| mask >> k & 1 == 1).map(|(_, tag)| tag.to_string()).collect();
+        let named = if named.is_empty() { "no block".to_string() } else { named.join(", ") };
+        say!("tree coding   {named} (ADPT: adaptive trees; the other blocks with frequency tables)");
     }
     if let Some(section) = container.section(WRAPPER) {
         let w = QuantizedSynthesis::read(section.payload, container.minor)

@@ -48,6 +48,11 @@ fn renders_views_exports_ply_and_prints_info() {
     for needle in ["version       1.0", "gaussians     7077", "'POSN'", "'SHRS'"] {
         assert!(info.contains(needle), "`{needle}` missing from:\n{info}");
     }
+    assert!(!info.contains("tree coding"), "a stream without ADPT:\n{info}");
+    // A stream with adaptive trees in some blocks names them.
+    let some = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance/vectors/adaptive-some-blocks/stream.pwb");
+    let info = stdout(&pwdec(&["info", some.to_str().unwrap()]));
+    assert!(info.contains("tree coding   'SCAL', 'OPAC', 'COLR' (ADPT"), "{info}");
 }
 
 /// `pwdec info s.pwb | head -1`: a standard output closed early is no error (no panic).
