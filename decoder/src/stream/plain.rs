@@ -365,27 +365,20 @@ impl Models {
     /// Fits the model of each slot to its values (in coding order) and writes them; `None`
     /// (and nothing written) when trees cannot hold them.
     fn fit_and_write(self, w: &mut FieldWriter, slots: &[Vec<i32>]) -> Option<Coders> {
+        let mut tables = |fit: fn(&mut FieldWriter, &[i32]) -> FrequencyTable| {
+            Some(Coders::Tables(slots.iter().map(|values| fit(w, values)).collect()))
+        };
         match self {
-            Models::Tables => Some(Coders::Tables(
-                slots
-                    .iter()
-                    .map(|values| {
-                        let table = FrequencyTable::fit(values);
-                        table.write(w);
-                        table
-                    })
-                    .collect(),
-            )),
-            Models::Gaussians => Some(Coders::Tables(
-                slots
-                    .iter()
-                    .map(|values| {
-                        let model = GaussianModel::fit(values);
-                        model.write(w);
-                        model.table()
-                    })
-                    .collect(),
-            )),
+            Models::Tables => tables(|w, values| {
+                let table = FrequencyTable::fit(values);
+                table.write(w);
+                table
+            }),
+            Models::Gaussians => tables(|w, values| {
+                let model = GaussianModel::fit(values);
+                model.write(w);
+                model.table()
+            }),
             Models::Trees => {
                 let previous = |values: &[i32]| -> Vec<i32> {
                     std::iter::once(0).chain(values.iter().copied()).take(values.len()).collect()
