@@ -55,3 +55,24 @@ fn refitted_shapes_render_closer_at_the_same_positions() {
         assert!(both > colours_alone + 0.1, "colours alone {colours_alone:.2} dB, after the shapes {both:.2} dB");
     }
 }
+
+/// A model without view-dependent colour (every SH band above 0 at 0, as in guitar's PLY)
+/// keeps none after the refit: its stream still has SH degree 0.
+#[test]
+fn unused_sh_bands_stay_unused() {
+    let mut g = random_gaussians(&mut SplitMix64(23), 400, 1, [-4.5, -2.5]);
+    let k = g.coeffs_per_channel() * 3;
+    g.sh.chunks_exact_mut(k).for_each(|c| c[3..].fill(0.0));
+    let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0), axis_camera(160, 120, 150.0, 150.0, 70.0, 50.0)];
+    let options = RenderOptions::default();
+    let weights = blend_weights(&g, &cameras, &options);
+    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let settings = QuantizerSettings::for_quality(8);
+    let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: true };
+    let (shaped, _) = refit_shapes(&g, coding, &context, (&cameras, &options), 2).unwrap();
+    assert!(shaped.sh.chunks_exact(k).all(|c| c[3..].iter().all(|&v| v == 0.0)), "a band came into use");
+    let moved = shaped.sh.chunks_exact(k).zip(g.sh.chunks_exact(k)).filter(|(a, b)| a[..3] != b[..3]).count();
+    assert!(moved > 100, "the DC colours move ({moved} of 400)");
+    let stream = compress_to_size(&shaped, coding, &context, None, usize::MAX).unwrap();
+    assert_eq!(stream.decoded.header.sh_degree, 0);
+}
