@@ -141,11 +141,13 @@ impl<'a> ShapeFit<'a> {
         // whole block. Guitar (no SH in its PLY) at quality 10 with the search and both refits:
         // 607,646 bytes at 61.55 dB with its three bands refitted (SHRS 21,431 bytes), 586,151
         // at 61.68 dB without them.
-        let used: Vec<bool> = (0..=model.sh_degree as usize)
-            .map(|band| {
-                band == 0 || model.sh.chunks_exact(k).any(|c| (3..k).any(|j| sh_band(j / 3) == band && c[j] != 0.0))
-            })
-            .collect();
+        let mut used = vec![false; model.sh_degree as usize + 1];
+        used[0] = true;
+        for coefficients in model.sh.chunks_exact(k) {
+            for (j, &c) in coefficients.iter().enumerate().skip(3) {
+                used[sh_band(j / 3)] |= c != 0.0;
+            }
+        }
         let sh_rates = (0..k)
             .map(|i| match sh_band(i / 3) {
                 0 => STEP_FRACTION * s.dc_step,

@@ -3,6 +3,7 @@
 //! codes as they were, round two thirds of the shapes to their stream values, and give the colour
 //! refit a better start.
 
+use pwgs_decoder::camera::Camera;
 use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{RenderOptions, render};
@@ -12,13 +13,18 @@ use pwgs_encoder::importance::blend_weights;
 use pwgs_encoder::metrics::psnr::psnr;
 use pwgs_encoder::shape_refit::refit_shapes;
 
+/// Two views of `g`, its blend weights in them and its stream context.
+fn views_of(g: &Gaussians) -> ([Camera; 2], RenderOptions, Vec<f32>, StreamContext) {
+    let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0), axis_camera(160, 120, 150.0, 150.0, 70.0, 50.0)];
+    let options = RenderOptions::default();
+    let weights = blend_weights(g, &cameras, &options);
+    (cameras, options, weights, StreamContext::from_gaussians(g, [0.0; 3]))
+}
+
 #[test]
 fn refitted_shapes_render_closer_at_the_same_positions() {
     let g = random_gaussians(&mut SplitMix64(22), 2000, 1, [-4.5, -2.5]);
-    let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0), axis_camera(160, 120, 150.0, 150.0, 70.0, 50.0)];
-    let options = RenderOptions::default();
-    let weights = blend_weights(&g, &cameras, &options);
-    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let (cameras, options, weights, context) = views_of(&g);
     // With faint Gaussians pruned: the gaps they leave are what the kept ones can fill.
     let settings = QuantizerSettings::for_quality(8);
     let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: true };
@@ -63,10 +69,7 @@ fn unused_sh_bands_stay_unused() {
     let mut g = random_gaussians(&mut SplitMix64(23), 400, 1, [-4.5, -2.5]);
     let k = g.coeffs_per_channel() * 3;
     g.sh.chunks_exact_mut(k).for_each(|c| c[3..].fill(0.0));
-    let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0), axis_camera(160, 120, 150.0, 150.0, 70.0, 50.0)];
-    let options = RenderOptions::default();
-    let weights = blend_weights(&g, &cameras, &options);
-    let context = StreamContext::from_gaussians(&g, [0.0; 3]);
+    let (cameras, options, weights, context) = views_of(&g);
     let settings = QuantizerSettings::for_quality(8);
     let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: true };
     let (shaped, _) = refit_shapes(&g, coding, &context, (&cameras, &options), 2).unwrap();

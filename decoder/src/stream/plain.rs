@@ -380,11 +380,7 @@ impl Models {
                 model.table()
             }),
             Models::Trees => {
-                let previous = |values: &[i32]| -> Vec<i32> {
-                    std::iter::once(0).chain(values.iter().copied()).take(values.len()).collect()
-                };
-                let models =
-                    slots.iter().map(|v| TreeModel::fit(v, &previous(v))).collect::<Option<Vec<TreeModel>>>()?;
+                let models = slots.iter().map(|v| TreeModel::fit(v)).collect::<Option<Vec<TreeModel>>>()?;
                 if !Trees::fit_in_a_block(&models) {
                     return None;
                 }

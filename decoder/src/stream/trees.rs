@@ -56,10 +56,11 @@ pub struct TreeModel {
 }
 
 impl TreeModel {
-    /// The model an encoder uses for a slot's `values`, each preceded by the slot's previous
-    /// value in `previous`; `None` when they span more than the largest range (the block
-    /// keeps its frequency tables then). Not normative: a decoder only reads the result.
-    pub fn fit(values: &[i32], previous: &[i32]) -> Option<Self> {
+    /// The model an encoder uses for a slot's `values` (in coding order, so that each one's
+    /// previous value is the one before it, 0 for the first); `None` when they span more than
+    /// the largest range (the block keeps its frequency tables then). Not normative: a decoder
+    /// only reads the result.
+    pub fn fit(values: &[i32]) -> Option<Self> {
         let (Some(&lo), Some(&hi)) = (values.iter().min(), values.iter().max()) else {
             return Some(Self { lo: 0, size: 1, thresholds: vec![] });
         };
@@ -67,7 +68,8 @@ impl TreeModel {
         check_range(lo, size as usize).ok()?;
         let mut thresholds = Vec::new();
         if values.len() >= SPLIT_FROM {
-            let mut sorted = previous.to_vec();
+            // The previous values: 0, then all but the last.
+            let mut sorted: Vec<i32> = std::iter::once(0).chain(values[..values.len() - 1].iter().copied()).collect();
             sorted.sort_unstable();
             for k in 1..SPLIT_INTO {
                 let t = sorted[k * sorted.len() / SPLIT_INTO];
@@ -142,7 +144,7 @@ impl Trees {
     /// Reads `slots` models and checks that they hold at most [`MAX_NODES`] nodes together.
     pub fn read(r: &mut FieldReader, slots: usize) -> Result<Self, FieldError> {
         let models = (0..slots).map(|_| TreeModel::read(r)).collect::<Result<Vec<_>, _>>()?;
-        let nodes: u64 = models.iter().map(TreeModel::nodes).sum();
+        let nodes = total_nodes(&models);
         if nodes > MAX_NODES {
             return Err(r.error("trees", format!("the block's trees hold {nodes} nodes, more than 2^20")));
         }
@@ -159,7 +161,7 @@ impl Trees {
 
     /// Whether the models stay within [`MAX_NODES`].
     pub fn fit_in_a_block(models: &[TreeModel]) -> bool {
-        models.iter().map(TreeModel::nodes).sum::<u64>() <= MAX_NODES
+        total_nodes(models) <= MAX_NODES
     }
 
     /// Codes `value`, which must lie in `slot`'s range.
@@ -195,6 +197,11 @@ impl Trees {
     }
 }
 
+/// The nodes of a block's models together.
+fn total_nodes(models: &[TreeModel]) -> u64 {
+    models.iter().map(TreeModel::nodes).sum()
+}
+
 /// Which blocks `ADPT` (one byte, bit `k` for `BLOCKS[k]`) says are coded with trees; a bit
 /// for a block the stream does not hold, or above them, is an error.
 pub(super) fn read_payload(payload: &[u8], present: [bool; 5]) -> Result<[bool; 5], DecodeError> {
@@ -224,9 +231,7 @@ mod tests {
     #[test]
     fn values_round_trip_through_the_trees_of_their_previous_values() {
         let values: Vec<i32> = (0..2000).map(|i: i32| (i * 7919 % 61) - 30 + (i / 500)).collect();
-        let mut previous = vec![0];
-        previous.extend_from_slice(&values[..values.len() - 1]);
-        let model = TreeModel::fit(&values, &previous).unwrap();
+        let model = TreeModel::fit(&values).unwrap();
         assert_eq!((model.lo, model.size, model.thresholds.len()), (-30, 64, 7));
         let mut encoder = SymbolEncoder::new();
         let mut trees = Trees::new(vec![model.clone()]);
@@ -245,15 +250,15 @@ mod tests {
 
     #[test]
     fn a_one_value_slot_takes_no_bits_and_wide_ones_keep_their_tables() {
-        let model = TreeModel::fit(&[5; 100], &[5; 100]).unwrap();
+        let model = TreeModel::fit(&[5; 100]).unwrap();
         assert_eq!((model.size, model.depth(), model.nodes()), (1, 0, 1));
         let mut encoder = SymbolEncoder::new();
         let mut trees = Trees::new(vec![model]);
         (0..100).for_each(|_| trees.encode(&mut encoder, 0, 5));
         assert!(encoder.finish().is_empty());
-        assert_eq!(TreeModel::fit(&[0, 4096], &[0, 0]), None);
-        assert_eq!(TreeModel::fit(&[-1, 4094], &[0, 0]).map(|m| m.depth()), Some(12));
-        assert_eq!(TreeModel::fit(&[], &[]), Some(TreeModel { lo: 0, size: 1, thresholds: vec![] }));
+        assert_eq!(TreeModel::fit(&[0, 4096]), None);
+        assert_eq!(TreeModel::fit(&[-1, 4094]).map(|m| m.depth()), Some(12));
+        assert_eq!(TreeModel::fit(&[]), Some(TreeModel { lo: 0, size: 1, thresholds: vec![] }));
     }
 
     #[test]
