@@ -16,7 +16,7 @@
 set -euo pipefail
 
 fuzz_dir=$(cd "$(dirname "$0")" && pwd)
-all_targets=(container entropy octree camera_json ply colmap_bin transforms splat_file decode)
+all_targets=(container entropy octree camera_json ply colmap_bin transforms splat_file sog decode)
 smoke=false seed=true build=true targets=()
 for arg in "$@"; do
     case "$arg" in
@@ -50,7 +50,7 @@ flags_of() {
         container) echo "-dict=dict/decode.dict" ;;
         decode) echo "-dict=dict/decode.dict -max_len=16384" ;;
         ply) echo "-dict=dict/ply.dict" ;;
-        camera_json | transforms) echo "-dict=dict/json.dict" ;;
+        camera_json | transforms | sog) echo "-dict=dict/json.dict" ;;
     esac
 }
 

@@ -26,7 +26,7 @@ if [[ -z "${PWENC:-}" || -z "${PWDEC:-}" ]]; then
 fi
 
 rm -rf "$corpus"
-mkdir -p "$corpus"/{container,entropy,octree,decode,camera_json,ply,colmap_bin,transforms,splat_file}
+mkdir -p "$corpus"/{container,entropy,octree,decode,camera_json,ply,colmap_bin,transforms,splat_file,sog}
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT
 
@@ -165,6 +165,22 @@ for version in (2, 3):
     for degree in (0, 1):
         write("splat_file", f"spz-v{version}-sh{degree}", spz(version, degree))
 PY
+
+# The hostile splat files (conformance/hostile/, made by the conformance generator): .splat and
+# .spz files as splat_file inputs behind their selector byte (0: .splat, 1: .spz), SOG archives
+# as they are. Among them are decompression bombs (SPZ headers claiming 53 million points, SOG
+# images declaring 16383 x 16383 pixels, zip entries overlapping one deflated payload) and a
+# valid SOG laid out as PlayCanvas's writer lays it out.
+hostile="$repo/conformance/hostile"
+for file in "$hostile"/*.splat "$hostile"/*.spz; do
+    [[ -e $file ]] || continue
+    case "$file" in *.splat) selector='\000' ;; *) selector='\001' ;; esac
+    { printf "$selector"; cat "$file"; } > "$corpus/splat_file/hostile-$(basename "$file")"
+done
+for file in "$hostile"/*.sog; do
+    [[ -e $file ]] || continue
+    cp "$file" "$corpus/sog/hostile-$(basename "$file")"
+done
 
 echo "seeded $corpus:"
 for dir in "$corpus"/*/; do

@@ -6,6 +6,7 @@
 pub mod expected;
 pub mod generator;
 pub mod invalid;
+pub mod resources;
 pub mod valid;
 
 use std::path::{Path, PathBuf};

@@ -5,8 +5,11 @@ mod common;
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, SH_C0, rgb_to_sh_dc};
 use pwgs_decoder::raster::blend::{ColourMap, splat_weights};
-use pwgs_decoder::raster::tiles::ListOrder;
-use pwgs_decoder::raster::{BlendPath, RenderOptions, Window, rasterize, rasterize_window, render};
+use pwgs_decoder::raster::opaque_tiles::{Stops, bin_window_until_opaque};
+use pwgs_decoder::raster::tiles::{BinBudget, ListOrder, bounded_windows};
+use pwgs_decoder::raster::{
+    BlendPath, RenderOptions, Window, rasterize, rasterize_window, render, render_within, visible_splats,
+};
 
 #[test]
 fn matches_naive_reference_on_random_scenes() {
@@ -58,6 +61,71 @@ fn a_window_is_exactly_that_part_of_the_whole_image() {
 }
 
 /// One opaque-ish Gaussian at `mean` with isotropic scale.
+/// Small budgets split a view into many windows, by rows and within rows: the image is the
+/// one-binning image bit for bit, and no window's lists exceed the budget unless one tile does.
+#[test]
+fn a_render_within_a_budget_is_the_whole_render() {
+    let mut rng = Rng(23);
+    let g = random_gaussians(&mut rng, 600, 1);
+    let cam = camera(150, 90, 120.0, 125.0, 70.0, 47.0);
+    let options = RenderOptions { background: [0.1, 0.4, 0.2], ..Default::default() };
+    let whole = rasterize(&g, &cam, &options);
+    let splats = visible_splats(&g, &cam, &options.projection);
+    let per_tile = |t: usize| whole.bins.tile(t).len() as u64;
+    let largest_tile = (0..(whole.bins.tiles_x * whole.bins.tiles_y) as usize).map(per_tile).max().unwrap();
+    for budget in [
+        BinBudget { entries: 1 << 30, pixels: 1 << 30 },
+        BinBudget { entries: 1 << 30, pixels: 256 * 12 },
+        BinBudget { entries: 2000, pixels: 1 << 30 },
+        BinBudget { entries: largest_tile, pixels: 256 },
+        BinBudget { entries: 1, pixels: 1 },
+    ] {
+        let windows = bounded_windows(splats.len(), |i| splats[i].bbox, Window::full(&cam), budget);
+        let covered: u64 = windows.iter().map(|w| u64::from(w.width) * u64::from(w.height)).sum();
+        assert_eq!(covered, 150 * 90, "{budget:?}: the windows tile the view");
+        for w in &windows {
+            let bins = pwgs_decoder::raster::tiles::bin_window(splats.len(), |i| splats[i].bbox, *w);
+            let tiles = u64::from(bins.tiles_x * bins.tiles_y);
+            assert!(
+                bins.entries.len() as u64 <= budget.entries.max(largest_tile)
+                    && u64::from(w.width * w.height) <= budget.pixels.max(256)
+                    || tiles == 1,
+                "{budget:?}: window {w:?} holds {} entries",
+                bins.entries.len()
+            );
+        }
+        assert!(budget.entries > 1 << 20 || windows.len() > 1, "{budget:?} splits the view");
+        assert_eq!(render_within(&g, &cam, &options, budget), whole.color, "{budget:?}");
+    }
+}
+
+/// Large, nearly opaque splats: tiles turn opaque after a few of them, and the colour render's
+/// lists end there; the image is the full lists' image bit for bit on every blend path.
+#[test]
+fn lists_that_end_at_opaque_tiles_change_no_pixel() {
+    let mut rng = Rng(29);
+    let mut g = random_gaussians(&mut rng, 400, 1);
+    for (i, (s, o)) in g.log_scales.iter_mut().zip(&mut g.opacity_logits).enumerate() {
+        *s = s.map(|v| v + 2.5);
+        // Some faint ones among them, which bound nothing but are blended until the tile closes.
+        *o = if i % 5 == 0 { -4.0 } else { 2.0 + (i % 7) as f32 };
+    }
+    let cam = camera(100, 70, 90.0, 92.0, 50.0, 35.0);
+    for blend in [BlendPath::Scalar, BlendPath::Vectorized, BlendPath::Portable] {
+        let options = RenderOptions { background: [0.7, 0.2, 0.4], blend, ..Default::default() };
+        let whole = rasterize(&g, &cam, &options);
+        let splats = visible_splats(&g, &cam, &options.projection);
+        let shortened = bin_window_until_opaque(&splats, Window::full(&cam), Stops::of(&options));
+        assert!(
+            shortened.entries.len() * 4 < whole.bins.entries.len(),
+            "{} of {} entries kept",
+            shortened.entries.len(),
+            whole.bins.entries.len()
+        );
+        assert_eq!(render(&g, &cam, &options), whole.color, "{blend:?}");
+    }
+}
+
 fn single(mean: [f32; 3], log_scale: f32, opacity_logit: f32, rgb: [f32; 3]) -> Gaussians {
     let mut g = Gaussians::with_degree(0);
     g.push(mean, [log_scale; 3], [1.0, 0.0, 0.0, 0.0], opacity_logit, &rgb.map(rgb_to_sh_dc));

@@ -2,9 +2,14 @@
 //! resolution, what to drop), then the decoder library's writer, then the decoder library's
 //! reader, so that what the encoder evaluates is exactly what a decoder will show.
 
+mod grid;
+
+use std::borrow::Cow;
+use std::cmp::Ordering;
+
 use pwgs_decoder::gaussians::{Gaussians, sh_band, sh_coeff_count};
 use pwgs_decoder::stream::header::{BaseKind, Header};
-use pwgs_decoder::stream::octree::{MAX_DEPTH, OctreeError};
+use pwgs_decoder::stream::octree::{MAX_POINTS_PER_VOXEL, OctreeError};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use pwgs_decoder::stream::{self, Decoded};
@@ -94,6 +99,9 @@ pub struct Compressed {
     pub faint: usize,
     /// Visible Gaussians dropped, least important first, to fit a target size.
     pub pruned: usize,
+    /// Gaussians dropped because more than 255 shared a cell of the finest position grid (the
+    /// least important of each such cell; a stream's cell holds at most 255).
+    pub crowded: usize,
 }
 
 /// Why Gaussians could not be compressed.
@@ -111,6 +119,11 @@ pub enum CompressError {
     Weights { weights: usize, gaussians: usize },
     #[error("a stream of at most {target} bytes is impossible: without any Gaussian it takes {minimum}")]
     TargetTooSmall { target: usize, minimum: usize },
+    #[error(
+        "positions span {low:.3e} to {high:.3e}: the stream's position grid cannot hold them (its origin's \
+         magnitude plus its extent must stay below 3.4e38, the largest binary32)"
+    )]
+    Span { low: f32, high: f32 },
 }
 
 /// Scene normalization and render settings stored in the header.
@@ -123,7 +136,8 @@ pub struct StreamContext {
 
 impl StreamContext {
     /// A normalization for Gaussians without cameras (an imported PLY): the per-axis median
-    /// position and 1.1 times the 95th percentile of the distance to it.
+    /// position and 1.1 times the 95th percentile of the distance to it (measured in binary64,
+    /// where no finite positions' distance overflows, and at most the largest binary32).
     pub fn from_gaussians(g: &Gaussians, background: [f32; 3]) -> Self {
         if g.is_empty() {
             return Self { center: [0.0; 3], scale: 1.0, background };
@@ -133,16 +147,16 @@ impl StreamContext {
             v.sort_by(f32::total_cmp);
             v[v.len() / 2]
         });
-        let mut d: Vec<f32> = g
+        let mut d: Vec<f64> = g
             .means
             .iter()
             .map(|m| {
-                let [x, y, z] = std::array::from_fn(|a| m[a] - center[a]);
+                let [x, y, z] = std::array::from_fn(|a| f64::from(m[a]) - f64::from(center[a]));
                 (x * x + y * y + z * z).sqrt()
             })
             .collect();
-        d.sort_by(f32::total_cmp);
-        let scale = (d[(d.len() * 95 / 100).min(d.len() - 1)] * 1.1).max(1e-6);
+        d.sort_by(f64::total_cmp);
+        let scale = (d[(d.len() * 95 / 100).min(d.len() - 1)] * 1.1).clamp(1e-6, f64::from(f32::MAX)) as f32;
         Self { center, scale, background }
     }
 }
@@ -181,25 +195,22 @@ pub fn compress_to_size(
     target: usize,
 ) -> Result<Compressed, CompressError> {
     let Selection { visible, invisible, faint, reference } = select(g, coding)?;
-    // Most important first: by importance weight when there are weights (what shows in views),
-    // else by opacity times area.
     let rank = || {
         let mut ranked = visible.clone();
-        match coding.weights {
-            Some(w) => ranked.sort_by(|&a, &b| w[b].total_cmp(&w[a]).then(a.cmp(&b))),
-            None => ranked.sort_by(|&a, &b| importance(g, b).total_cmp(&importance(g, a)).then(a.cmp(&b))),
-        }
+        ranked.sort_by(|&a, &b| more_important(g, coding.weights, a, b));
         ranked
     };
     let write = |keep: Option<&[usize]>| {
-        write_selected(g, keep.unwrap_or(&visible), (coding, reference), context, wrapper).map(|(bytes, _)| bytes)
+        write_selected(g, keep.unwrap_or(&visible), (coding, reference), context, wrapper).map(|w| w.bytes)
     };
     let (kept, bytes) = match most_important_fitting(visible.len(), target, rank, write)? {
         Fit::Fits { kept, bytes } => (kept.map_or(visible.len(), |k| k.len()), bytes),
         Fit::TooSmall { minimum } => return Err(CompressError::TargetTooSmall { target, minimum }),
     };
     let decoded = stream::decode(&bytes)?;
-    Ok(Compressed { bytes, decoded, invisible, faint, pruned: visible.len() - kept })
+    // What the grid could not hold of the Gaussians kept for the size.
+    let crowded = kept - decoded.header.gaussian_count as usize;
+    Ok(Compressed { bytes, decoded, invisible, faint, pruned: visible.len() - kept, crowded })
 }
 
 /// What [`compress_to_size`] with `coding` and no target size keeps of `g` (indices into `g`,
@@ -211,8 +222,8 @@ pub fn reconstruction(
     context: &StreamContext,
 ) -> Result<(Vec<usize>, Gaussians), CompressError> {
     let Selection { visible, reference, .. } = select(g, coding)?;
-    let (_, content) = write_selected(g, &visible, (coding, reference), context, None)?;
-    Ok((visible, content.dequantize()))
+    let Written { content, kept, .. } = write_selected(g, &visible, (coding, reference), context, None)?;
+    Ok((kept, content.dequantize()))
 }
 
 /// The Gaussians a stream can hold, before any target size.
@@ -251,6 +262,25 @@ fn importance(g: &Gaussians, i: usize) -> f32 {
     g.opacity_logits[i].min(0.0) + (2.0 / 3.0) * (sx + sy + sz)
 }
 
+/// Orders Gaussians (indices into `g`) most important first: by importance weight when there
+/// are weights (what shows in views), else by opacity times area ([`importance`]); then by index.
+fn more_important(g: &Gaussians, weights: Option<&[f32]>, a: usize, b: usize) -> Ordering {
+    match weights {
+        Some(w) => w[b].total_cmp(&w[a]),
+        None => importance(g, b).total_cmp(&importance(g, a)),
+    }
+    .then(a.cmp(&b))
+}
+
+/// A written stream of some Gaussians.
+struct Written {
+    bytes: Vec<u8>,
+    content: PlainGaussians,
+    /// The Gaussians it holds (indices into the model, increasing): those asked for but what
+    /// [`on_grid`] drops.
+    kept: Vec<usize>,
+}
+
 /// The stream of the Gaussians `keep` (indices into `g`, increasing), and what it codes.
 fn write_selected(
     g: &Gaussians,
@@ -258,41 +288,74 @@ fn write_selected(
     coding: (Coding, f32),
     context: &StreamContext,
     wrapper: Option<&QuantizedSynthesis>,
-) -> Result<(Vec<u8>, PlainGaussians), CompressError> {
+) -> Result<Written, CompressError> {
     if keep.len() > stream::header::MAX_GAUSSIANS as usize {
         return Err(CompressError::TooMany { count: keep.len(), limit: stream::header::MAX_GAUSSIANS });
     }
-    // Several Gaussians can share a grid cell; a cell holds at most 255, so refine the grid
-    // until none overflows.
+    let (kept, content) = on_grid(g, keep, coding)?;
+    let kept = kept.into_owned();
+    let header = Header {
+        base: BaseKind::Plain3dgs,
+        gaussian_count: content.len() as u32,
+        sh_degree: content.sh_degree,
+        center: context.center,
+        scale: context.scale,
+        background: context.background,
+    };
+    let bytes = stream::encode(&header, &content, wrapper)?;
+    if !content.colour_differences_fit() {
+        return Ok(Written { bytes, content, kept });
+    }
+    // The colours as differences (SPEC.md 6.6) when that is smaller: it is on captured scenes
+    // (a third of the colours' bytes on biker), not on random ones.
+    let differences = PlainGaussians { colour_differences: true, ..content };
+    let other = stream::encode(&header, &differences, wrapper)?;
+    if other.len() < bytes.len() {
+        return Ok(Written { bytes: other, content: differences, kept });
+    }
+    Ok(Written { bytes, content: PlainGaussians { colour_differences: false, ..differences }, kept })
+}
+
+/// The Gaussians `keep` quantized on a grid where no cell of `POSN` holds more than 255 of
+/// them (SPEC.md section 9), and which of them that is.
+///
+/// Several Gaussians can share a cell; the grid is refined, level by level, until none holds
+/// more than 255. Where even the finest grid ([`grid::GridChoice::finest`]) has a cell with
+/// more (many Gaussians at one position, which real models have, or within a 2^24th of a scene
+/// whose outliers stretch the grid), no stream can hold them all: each such cell keeps its 255
+/// most important ([`more_important`]) and the others are dropped, which the caller reports
+/// ([`Compressed::crowded`]). At 255 Gaussians on one spot the ones behind hardly show.
+fn on_grid<'a>(
+    g: &Gaussians,
+    keep: &'a [usize],
+    (coding, reference): (Coding, f32),
+) -> Result<(Cow<'a, [usize]>, PlainGaussians), CompressError> {
+    let s = coding.settings;
+    // Each level finer makes the grid a level deeper until it is the finest: at most 24 turns.
     let mut finer = 0;
     loop {
-        let content = quantize(g, keep, coding, finer);
-        let header = Header {
-            base: BaseKind::Plain3dgs,
-            gaussian_count: content.len() as u32,
-            sh_degree: content.sh_degree,
-            center: context.center,
-            scale: context.scale,
-            background: context.background,
-        };
-        match stream::encode(&header, &content, wrapper) {
-            Ok(bytes) if content.colour_differences_fit() => {
-                // The colours as differences (SPEC.md 6.6) when that is smaller: it is on
-                // captured scenes (a third of the colours' bytes on biker), not on random ones.
-                let mut content = PlainGaussians { colour_differences: true, ..content };
-                let other = stream::encode(&header, &content, wrapper)?;
-                if other.len() < bytes.len() {
-                    return Ok((other, content));
-                }
-                content.colour_differences = false;
-                return Ok((bytes, content));
-            }
-            Ok(bytes) => return Ok((bytes, content)),
-            // (With classes `POSN`'s grid is coarser than the one refined: the refined one
-            // is what reaches the deepest grid.)
-            Err(OctreeError::VoxelOverflow { .. }) if content.grid.depth + content.refine() < MAX_DEPTH => finer += 1,
-            Err(e) => return Err(e.into()),
+        let choice = grid::choose(g, keep, (u32::from(s.position_bits) + finer, s.position_half_bit))?;
+        let content = quantize(g, keep, (coding, reference), &choice.grid);
+        let refine = content.refine();
+        let cells: Vec<[u32; 3]> = content.positions.iter().map(|q| q.map(|c| c >> refine)).collect();
+        let overfull = grid::overfull_cells(&cells);
+        if overfull.is_empty() {
+            return Ok((Cow::Borrowed(keep), content));
         }
+        if !choice.finest {
+            finer += 1;
+            continue;
+        }
+        let mut dropped = vec![false; keep.len()];
+        for mut rows in overfull {
+            rows.sort_by(|&a, &b| more_important(g, coding.weights, keep[a], keep[b]));
+            rows[MAX_POINTS_PER_VOXEL as usize..].iter().for_each(|&r| dropped[r] = true);
+        }
+        let kept: Vec<usize> = keep.iter().zip(&dropped).filter(|&(_, &d)| !d).map(|(&i, _)| i).collect();
+        // On the same grid: the cells of `POSN` are those above, or finer ones where fewer
+        // classes refine less, so none holds more than 255 now.
+        let content = quantize(g, &kept, (coding, reference), &choice.grid);
+        return Ok((Cow::Owned(kept), content));
     }
 }
 
@@ -328,49 +391,6 @@ fn visible_after_quantization(g: &Gaussians, opacity_step: f32) -> Vec<usize> {
         .collect()
 }
 
-/// The grid: origin at the minimum corner, cells sized from the robust extent, deep enough to
-/// hold every position (coarser cells if 24 bits cannot reach the farthest outlier).
-fn choose_grid(g: &Gaussians, visible: &[usize], (bits, half_bit): (u8, bool)) -> PositionGrid {
-    if visible.is_empty() {
-        return PositionGrid { origin: [0.0; 3], cell: 1.0, depth: 1 };
-    }
-    let mut robust = 0.0f64;
-    let mut full = 0.0f64;
-    let mut origin = [0.0f32; 3];
-    for a in 0..3 {
-        let mut v: Vec<f32> = visible.iter().map(|&i| g.means[i][a]).collect();
-        v.sort_by(f32::total_cmp);
-        let at = |p: usize| f64::from(v[(v.len() - 1) * p / 100]);
-        robust = robust.max(at(99) - at(1));
-        full = full.max(f64::from(v[v.len() - 1]) - f64::from(v[0]));
-        origin[a] = v[0];
-    }
-    let robust = if robust > 0.0 { robust } else { full.max(1e-6) };
-    let cells = f64::from(1u32 << bits) * if half_bit { std::f64::consts::SQRT_2 } else { 1.0 };
-    let mut cell = robust / cells;
-    let mut depth = 1u8;
-    while depth < MAX_DEPTH && f64::from(1u32 << depth) * cell <= full {
-        depth += 1;
-    }
-    if f64::from(1u32 << depth) * cell <= full {
-        cell = full / (f64::from(1u32 << MAX_DEPTH) - 1.0);
-    }
-    PositionGrid { origin, cell: cell as f32, depth }
-}
-
-fn quantize_positions(g: &Gaussians, visible: &[usize], grid: &PositionGrid) -> Vec<[u32; 3]> {
-    let max = (1u64 << grid.depth) - 1;
-    visible
-        .iter()
-        .map(|&i| {
-            std::array::from_fn(|a| {
-                let t = (f64::from(g.means[i][a]) - f64::from(grid.origin[a])) / f64::from(grid.cell);
-                (t.round().max(0.0) as u64).min(max) as u32
-            })
-        })
-        .collect()
-}
-
 fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
     let norm = q.iter().map(|&c| f64::from(c) * f64::from(c)).sum::<f64>().sqrt();
     let unit: [f64; 4] = if norm > 0.0 { q.map(|c| f64::from(c) / norm) } else { [1.0, 0.0, 0.0, 0.0] };
@@ -383,11 +403,10 @@ fn quantize_rotation(q: [f32; 4], step: f32) -> QuantizedRotation {
     QuantizedRotation { largest: largest as u8, rest }
 }
 
-/// The quantized Gaussians `keep`, on a grid `finer` levels finer than the settings ask, with
-/// importance classes measured from `reference` when `coding` has weights.
-fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), finer: u8) -> PlainGaussians {
+/// The quantized Gaussians `keep`, on the grid `fine` (`POSN`'s grid refined by the classes'
+/// levels), with importance classes measured from `reference` when `coding` has weights.
+fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), fine: &PositionGrid) -> PlainGaussians {
     let s = coding.settings;
-    let fine = choose_grid(g, keep, (s.position_bits.saturating_add(finer), s.position_half_bit));
     let count = s.importance_classes;
     let classes = coding.weights.filter(|_| count >= 2).map(|w| {
         let weights: Vec<f32> = keep.iter().map(|&i| w[i]).collect();
@@ -420,7 +439,7 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
     // Each Gaussian in the frame whose rotation codes smallest (the same covariance).
     let (rotations, log_scales): (Vec<_>, Vec<_>) =
         keep.iter().map(|&i| canonical_frame(g.rotations[i], g.log_scales[i])).unzip();
-    let mut positions = quantize_positions(g, keep, &fine);
+    let mut positions = grid::quantize_positions(g, keep, fine);
     let refine = classes.as_ref().map_or(0, |c| c.refine);
     if let Some(c) = &classes {
         for (q, &class) in positions.iter_mut().zip(&c.of) {
@@ -430,7 +449,7 @@ fn quantize(g: &Gaussians, keep: &[usize], (coding, reference): (Coding, f32), f
     PlainGaussians {
         positions,
         // POSN's grid: `refine` levels coarser (the cell times a power of two, exact).
-        grid: PositionGrid { cell: fine.cell * (1u32 << refine) as f32, depth: fine.depth - refine, ..fine },
+        grid: PositionGrid { cell: fine.cell * (1u32 << refine) as f32, depth: fine.depth - refine, ..*fine },
         scale_step: s.log_scale_step,
         log_scales: (log_scales.iter().enumerate())
             .map(|(r, l)| l.map(|v| quantize_value(v, step(r, s.log_scale_step))))

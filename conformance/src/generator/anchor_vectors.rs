@@ -153,6 +153,36 @@ fn edited(bytes: &[u8], tag: Tag, edit: impl Fn(&mut Vec<u8>)) -> Vec<u8> {
     out
 }
 
+/// `anchors` with every value and every network parameter 0 (they code to almost nothing).
+fn zeroed(mut anchors: QuantizedAnchors) -> QuantizedAnchors {
+    anchors.features.fill(0);
+    anchors.scaling.fill([0; 6]);
+    anchors.offsets.fill(0);
+    for m in &mut anchors.mlps {
+        [&mut m.w1, &mut m.b1, &mut m.w2, &mut m.b2].into_iter().for_each(|t| t.fill(0));
+    }
+    anchors
+}
+
+/// `bytes` without its padding section, then, with `Some(len)`, padded to exactly `len`
+/// bytes (a stream at a chosen distance from a per-byte limit).
+fn padded_to(bytes: &[u8], len: Option<usize>) -> Vec<u8> {
+    let container = Container::parse(bytes).expect("a valid stream");
+    let sections: Vec<(Tag, Vec<u8>)> =
+        container.sections.iter().filter(|s| s.tag != PADDING).map(|s| (s.tag, s.payload.to_vec())).collect();
+    let Some(len) = len else { return write_container(&sections) };
+    let unpadded = write_container(&sections).len();
+    assert!(unpadded < len, "the stream is {unpadded} bytes without padding, not below {len}");
+    (0..len - unpadded)
+        .map(|pad| {
+            let mut with = sections.clone();
+            with.push((PADDING, vec![0; pad]));
+            write_container(&with)
+        })
+        .find(|out| out.len() == len)
+        .expect("a padding of some length gives the stream's length")
+}
+
 pub fn refusals() -> Vec<Refusal> {
     let valid = encode(&synthetic_anchors(40, 32));
     let refusal = |file: &str, clause, error: &str, description: &str, bytes| Refusal {
@@ -173,15 +203,67 @@ pub fn refusals() -> Vec<Refusal> {
         m.w1 = vec![0; m.hidden * 204];
         [&mut m.b1, &mut m.w2, &mut m.b2].into_iter().for_each(|t| t.fill(0));
     }
-    let unpadded = {
-        let padded = encode(&wide);
-        let container = Container::parse(&padded).expect("a valid stream");
-        let sections: Vec<(Tag, Vec<u8>)> =
-            container.sections.iter().filter(|s| s.tag != PADDING).map(|s| (s.tag, s.payload.to_vec())).collect();
-        write_container(&sections)
-    };
+    let unpadded = padded_to(&encode(&wide), None);
     let with_grid = encode(&with_context(synthetic_anchors(40, 37), 38));
+    // 40 anchors (F = 6, K = 4) with networks of width 256: 74 x 256 = 18,944 multiply-adds
+    // per anchor and view, 757,760 in all, so at least 740 bytes; padded to 739.
+    let mut wide_networks = zeroed(synthetic_anchors(40, 39));
+    for (m, outputs) in wide_networks.mlps.iter_mut().zip([OFFSETS, 3 * OFFSETS, 7 * OFFSETS]) {
+        *m = QuantizedMlp {
+            hidden: 256,
+            w1: vec![0; 256 * (FEATURES + 4)],
+            b1: vec![0; 256],
+            w2: vec![0; outputs * 256],
+            b2: vec![0; outputs],
+            ..m.clone()
+        };
+    }
+    // 400 anchors with a context network of width 128: 8 x 18 + 128 x (18 + 48) = 8,592
+    // multiply-adds per anchor, 3,436,800 in all, so at least 3,357 bytes; padded to 3,356.
+    let mut wide_context = with_context(zeroed(synthetic_anchors(400, 40)), 41);
+    if let Some(c) = &mut wide_context.context {
+        let outputs = c.mlp.b2.len();
+        let inputs = c.shape.context_len();
+        // Every value predicted at 0 with a scale of 1/16 unit (log2 scale -4 = -32 x 2^-3),
+        // so that the all-zero values cost almost nothing.
+        c.mlp = QuantizedMlp {
+            hidden: 128,
+            w1: vec![0; 128 * inputs],
+            b1: vec![0; 128],
+            w2: vec![0; outputs * 128],
+            b2: (0..outputs).map(|o| if o < outputs / 2 { 0 } else { -32 }).collect(),
+            ..c.mlp.clone()
+        };
+    }
+    // 1,000 anchors with every mask open: 4,000 unmasked offsets; padded to 3,999 bytes (the
+    // values need 1,000 x 28 / 64 = 438 bytes, the networks 1,000 x 592 / 1024 = 579).
+    let mut open = zeroed(synthetic_anchors(1000, 42));
+    open.masks.fill(true);
     vec![
+        refusal(
+            "anchor-multiply-adds-per-byte",
+            "S12.1-work-bound",
+            "section 'AMLP': 40 anchors of 18944 multiply-adds each exceed the stream's length of 739 bytes",
+            "40 anchors whose three networks are 256 wide: 18,944 multiply-adds per anchor and view in a stream of \
+             739 bytes, one byte short of 1024 multiply-adds per byte.",
+            padded_to(&encode(&wide_networks), Some(739)),
+        ),
+        refusal(
+            "anchor-context-multiply-adds-per-byte",
+            "S12.7-context",
+            "section 'ACTX': 400 anchors of 8592 multiply-adds each exceed the stream's length of 3356 bytes",
+            "400 anchors whose context network is 128 wide: 8,592 multiply-adds per anchor in a stream of 3,356 \
+             bytes, one byte short of 1024 multiply-adds per byte.",
+            padded_to(&encode(&wide_context), Some(3356)),
+        ),
+        refusal(
+            "anchor-unmasked-offsets-per-byte",
+            "S12.3-neural-bound",
+            "section 'AMSK': 4000 unmasked offsets exceed the stream's length of 3999 bytes",
+            "1,000 anchors of K = 4 with every mask open in a stream of 3,999 bytes: one unmasked offset more than \
+             bytes.",
+            padded_to(&encode(&open), Some(3999)),
+        ),
         refusal(
             "anchor-context-level",
             "S12.7-context",

@@ -8,6 +8,7 @@
 
 mod anchor_vectors;
 pub mod content;
+pub mod hostile;
 mod invalid_cameras;
 mod invalid_streams;
 pub mod raw;
@@ -69,6 +70,7 @@ pub fn generate() -> Result<Files> {
         files.insert(PathBuf::from("invalid").join(&r.file), r.bytes);
     }
     files.insert(PathBuf::from("invalid").join(EXPECTED_FILE), json(&refusals)?);
+    files.extend(hostile::files()?);
     Ok(files)
 }
 

@@ -22,15 +22,16 @@ impl BlendPass {
     }
 
     /// Submits the blending of the `projected` splats that `bins` lists (by Gaussian index,
-    /// front to back, over the whole image) and returns the buffer the image lands in
-    /// (interleaved RGB).
+    /// front to back) over its window into `image` (interleaved RGB of the whole
+    /// `width` x `height` view), one workgroup per tile of the window.
     pub fn run(
         &self,
         gpu: &GpuRenderer,
         projected: &Projected,
         bins: &TileBins,
         options: &RenderOptions,
-    ) -> Result<wgpu::Buffer, GpuError> {
+        (image, width, height): (&wgpu::Buffer, u32, u32),
+    ) -> Result<(), GpuError> {
         // The smooth cutoff exists for finite-difference checks of the CPU backward pass; a
         // viewer has no use for it, and the shader implements the standard hard threshold.
         if options.cutoff != Cutoff::Hard {
@@ -48,14 +49,17 @@ impl BlendPass {
                 })
             })
             .collect::<Result<_, _>>()?;
-        let pixels = window.width as usize * window.height as usize;
         let background = options.background;
         let params = uniform(
             gpu,
             &[
-                window.width,
-                window.height,
+                width,
+                height,
                 bins.tiles_x,
+                window.x0,
+                window.y0,
+                window.x0 + window.width,
+                window.y0 + window.height,
                 0,
                 (options.projection.alpha_min as f32).to_bits(),
                 options.alpha_max.to_bits(),
@@ -69,9 +73,13 @@ impl BlendPass {
         );
         let offsets = storage(gpu, "tile offsets", bytemuck::cast_slice(&offsets))?;
         let lists = storage(gpu, "tile lists", bytemuck::cast_slice(&bins.entries))?;
-        let image = output(gpu, "base render", pixels * 3)?;
-        let buffers = [&params, &projected.splats, &projected.boxes, &offsets, &lists, &image];
+        let buffers = [&params, &projected.splats, &projected.boxes, &offsets, &lists, image];
         dispatch(gpu, &self.pipeline, &buffers, [bins.tiles_x, bins.tiles_y]);
-        Ok(image)
+        Ok(())
+    }
+
+    /// The buffer a view's base render lands in (interleaved RGB).
+    pub fn image(&self, gpu: &GpuRenderer, width: u32, height: u32) -> Result<wgpu::Buffer, GpuError> {
+        output(gpu, "base render", width as usize * height as usize * 3)
     }
 }

@@ -3,10 +3,16 @@
 // (decoder/src/raster/blend.rs). Only `exp` differs (the GPU's own), so the image agrees
 // within the tolerance the tests state rather than bit for bit.
 
+// The view is blended window by window (bounded tile lists): each dispatch covers one window's
+// tiles, [x0, x1) x [y0, y1) in the view's pixels, tile-aligned at its top left corner.
 struct Params {
     width: u32,
     height: u32,
     tiles_x: u32,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
     _pad0: u32,
     alpha_min: f32,
     alpha_max: f32,
@@ -22,7 +28,7 @@ const SPLAT_STRIDE: u32 = 12u;
 @group(0) @binding(1) var<storage, read> splats: array<f32>;
 // Per splat: x0, x1, y0, y1 (pixels covered: x in [x0, x1), y in [y0, y1)).
 @group(0) @binding(2) var<storage, read> boxes: array<vec4<u32>>;
-// Tile t's splats are entries[offsets[t] .. offsets[t + 1]], front to back.
+// Tile t of the window (row-major) has entries[offsets[t] .. offsets[t + 1]], front to back.
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
 @group(0) @binding(4) var<storage, read> entries: array<u32>;
 // Interleaved RGB, row by row.
@@ -52,9 +58,9 @@ fn portable_exp(x: f32) -> f32 {
 
 @compute @workgroup_size(16, 16, 1)
 fn main(@builtin(workgroup_id) tile: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
-    let px = tile.x * 16u + local.x;
-    let py = tile.y * 16u + local.y;
-    if px >= params.width || py >= params.height {
+    let px = params.x0 + tile.x * 16u + local.x;
+    let py = params.y0 + tile.y * 16u + local.y;
+    if px >= params.x1 || py >= params.y1 {
         return;
     }
     let t = tile.y * params.tiles_x + tile.x;

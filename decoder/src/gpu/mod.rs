@@ -24,7 +24,8 @@ mod synthesis;
 use std::time::{Duration, Instant};
 
 use crate::camera::Camera;
-use crate::raster::{RenderOptions, Window, tiles};
+use crate::raster::tiles::{self, BinBudget};
+use crate::raster::{RenderOptions, Window};
 use crate::rgb_image::RgbImage;
 use crate::scene::{Base, Scene, Shown};
 use crate::wrapper::Conditioning;
@@ -203,17 +204,26 @@ impl GpuRenderer {
         times.projection = start.elapsed();
         let start = Instant::now();
         let (order, boxes) = projected.front_to_back(self)?;
-        let mut bins = tiles::bin_boxes(order.len(), |k| boxes[order[k] as usize], Window::full(camera));
-        // The blend pass reads splats by Gaussian index.
-        bins.entries.iter_mut().for_each(|e| *e = order[*e as usize]);
+        let bbox = |k: usize| boxes[order[k] as usize];
+        let windows = tiles::bounded_windows(order.len(), bbox, Window::full(camera), BinBudget::DEFAULT);
         times.sort = start.elapsed();
 
-        let start = Instant::now();
-        let base = self.blend.run(self, &projected, &bins, options)?;
-        self.wait();
-        times.raster = start.elapsed();
-
+        // Window by window, as the CPU renderer does: the tile lists of a view stay bounded
+        // whatever its splats.
         let (width, height) = (camera.width, camera.height);
+        let base = self.blend.image(self, width, height)?;
+        for window in windows {
+            let start = Instant::now();
+            let mut bins = tiles::bin_window(order.len(), bbox, window);
+            // The blend pass reads splats by Gaussian index.
+            bins.entries.iter_mut().for_each(|e| *e = order[*e as usize]);
+            times.sort += start.elapsed();
+            let start = Instant::now();
+            self.blend.run(self, &projected, &bins, options, (&base, width, height))?;
+            self.wait();
+            times.raster += start.elapsed();
+        }
+
         let wrapper = scene.wrapper_view().filter(|_| output == Output::Shown);
         let Some(view) = wrapper else {
             let start = Instant::now();

@@ -12,6 +12,7 @@ pub mod alpha_lanes;
 pub mod blend;
 pub mod blend_simd;
 pub mod lanes;
+pub mod opaque_tiles;
 pub mod project;
 pub mod project_f32;
 pub mod sh;
@@ -22,8 +23,9 @@ use rayon::prelude::*;
 use crate::camera::Camera;
 use crate::gaussians::Gaussians;
 use crate::rgb_image::RgbImage;
+use opaque_tiles::Stops;
 use project::{ProjectionSettings, Splat};
-use tiles::TileBins;
+use tiles::{BinBudget, TileBins};
 
 /// Tile edge in pixels.
 pub const TILE_SIZE: u32 = 16;
@@ -208,7 +210,39 @@ fn clip_to_window(splats: Vec<Splat>, window: Window) -> Vec<Splat> {
         .collect()
 }
 
-/// Renders a view's colors only.
+/// Renders a view's colors only, in bounded memory: the view is blended window by window
+/// ([`tiles::bounded_windows`] with [`BinBudget::DEFAULT`]), so that whatever the splats, a
+/// render takes besides its image (12 bytes per pixel) and its splats (80 bytes each) about
+/// 100 MiB of tile lists and per-pixel arrays. The pixels are those of [`rasterize`]: every
+/// window's pixels are blended from the image's coordinates in the same order.
 pub fn render(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions) -> RgbImage {
-    rasterize(gaussians, camera, options).color
+    render_within(gaussians, camera, options, BinBudget::DEFAULT)
+}
+
+/// [`render`] within `budget` (tests use small budgets to exercise many windows).
+pub fn render_within(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions, budget: BinBudget) -> RgbImage {
+    let splats = visible_splats(gaussians, camera, &options.projection);
+    let full = Window::full(camera);
+    let windows = tiles::bounded_windows(splats.len(), |i| splats[i].bbox, full, budget);
+    // The smooth cutoff (gradient checks) blends below alpha_min: no tile is surely opaque.
+    let bin = |window| match options.cutoff {
+        Cutoff::Hard => opaque_tiles::bin_window_until_opaque(&splats, window, Stops::of(options)),
+        Cutoff::Smooth => tiles::bin_window(splats.len(), |i| splats[i].bbox, window),
+    };
+    let mut image = RgbImage { width: camera.width, height: camera.height, data: Vec::new() };
+    if let [window] = windows[..] {
+        image.data = blend_bins(&splats, &bin(window), options).color.data;
+        return image;
+    }
+    image.data = vec![0.0; full.width as usize * full.height as usize * 3];
+    for window in windows {
+        let bins = bin(window);
+        let part = blend_bins(&splats, &bins, options).color;
+        let row = window.width as usize * 3;
+        for (y, source) in part.data.chunks_exact(row).enumerate() {
+            let start = ((window.y0 as usize + y) * full.width as usize + window.x0 as usize) * 3;
+            image.data[start..start + row].copy_from_slice(source);
+        }
+    }
+    image
 }

@@ -9,6 +9,13 @@
 //! corrupt or hostile file is an error naming the file and the problem, never a panic, and
 //! nothing is allocated beyond what the bytes actually present can fill.
 //!
+//! Compressed inputs (SPZ's gzip and zstd streams, SOG's zip entries and WebP images) are
+//! bounded before they are expanded: a header's or `meta.json`'s point count by what a pwgs
+//! stream holds ([`MAX_IMPORTED_POINTS`]), the bytes it makes the reader decompress or decode by
+//! [`decompressed_limit`] of the input's size, and every decompression stops one byte past what
+//! the counts require, so that a small file claiming millions of points is refused before it
+//! is inflated rather than after.
+//!
 //! The `*_to_*_bytes` writers exist so that round trips can be tested without external files;
 //! they are small and write only what the readers need to be exercised.
 
@@ -18,11 +25,33 @@ mod spz;
 
 use std::path::Path;
 
+pub use sog::gaussians_from_sog_bytes;
 pub use splat::{SPLAT_MIN_LOG_SCALE, SPLAT_RECORD_BYTES, gaussians_from_splat_bytes, gaussians_to_splat_bytes};
 pub use spz::{SPZ_MAX_DECOMPRESSED_BYTES, SpzAxes, SpzVersion, gaussians_from_spz_bytes, gaussians_to_spz_bytes};
 
 use crate::gaussians::Gaussians;
 use crate::ply::PlyProblem;
+
+/// The most points (Gaussians) an imported file may declare: as many as one pwgs stream holds
+/// (`bitstream-spec/SPEC.md` section 9), checked before anything is decompressed or allocated.
+pub const MAX_IMPORTED_POINTS: u32 = crate::stream::header::MAX_GAUSSIANS;
+
+/// How many bytes of decompressed data (SPZ) or decoded pixels (SOG) one byte of input may
+/// expand to. Real splat data is quantized noise that gzip, zstd and lossless WebP shrink 1.2
+/// to 5 times, so 32 leaves wide room; without such a bound the point limit alone would let a
+/// few hundred kilobytes of zeros (gzip's 1:1032, zstd's RLE blocks at 1:32768) demand 2^24
+/// points: 335 MB of SPZ data and 0.9 GB of Gaussians.
+pub const MAX_EXPANSION: u64 = 32;
+
+/// Decompressed bytes every input may use whatever its size, for small files of repetitive
+/// content (test scenes, a few identical Gaussians) that compress far better than real data.
+pub const EXPANSION_ALLOWANCE: u64 = 1 << 20;
+
+/// The most bytes reading an input of `input_bytes` may decompress or decode: [`MAX_EXPANSION`]
+/// times its size plus [`EXPANSION_ALLOWANCE`] (33 MiB for a 1 MB file).
+pub fn decompressed_limit(input_bytes: u64) -> u64 {
+    input_bytes.saturating_mul(MAX_EXPANSION).saturating_add(EXPANSION_ALLOWANCE)
+}
 
 /// A problem with a splat file; `source_name` names the file.
 #[derive(Debug, thiserror::Error)]
@@ -65,8 +94,14 @@ pub enum SplatFileProblem {
     ShortHeader { found: usize },
     #[error("the SPZ header declares {points} points, which need {needed} bytes of data, but the data holds {found}")]
     ShortData { points: u32, needed: u64, found: u64 },
-    #[error("the SPZ header declares {points} points, which need {needed} bytes, more than the {limit}-byte limit")]
-    TooLarge { points: u32, needed: u64, limit: u64 },
+    #[error("the SPZ header declares {points} points, more than the {limit} a pwgs stream holds")]
+    TooManyPoints { points: u32, limit: u32 },
+    #[error(
+        "the SPZ header declares {points} points, which need {needed} bytes of data, more than the {limit}-byte \
+         limit for a {file_bytes}-byte file ({MAX_EXPANSION} times its size plus {EXPANSION_ALLOWANCE} bytes, at most \
+         {SPZ_MAX_DECOMPRESSED_BYTES}): real SPZ data does not compress that far"
+    )]
+    TooLarge { points: u32, needed: u64, limit: u64, file_bytes: u64 },
     #[error("data continues after the {points} points, and the SPZ header announces no extension records")]
     TrailingData { points: u32 },
     #[error("malformed SPZ extension record at byte {offset} of the extension block: {message}")]

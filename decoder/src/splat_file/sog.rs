@@ -16,19 +16,31 @@
 //! A codebook entry may be `null` (PlayCanvas writes a non-finite sentinel so); a Gaussian that
 //! uses one is dropped, as the PLY reader drops non-finite values. Anything else out of place
 //! (a tag, label or index out of range, an image too small) is an error naming the file.
+//!
+//! Bounds, all checked before the work they bound: `count` at most [`MAX_IMPORTED_POINTS`] and
+//! the palette at most 2^16 entries (its labels are 16-bit); `meta.json` at most a megabyte;
+//! only the files `meta.json` names are read (an archive's other entries are never opened), each
+//! through a cap (see [`images`]); every image's size, from its header, against the Gaussians
+//! it holds; and the pixels all images decode to against [`super::decompressed_limit`] of the input.
 
-use std::collections::HashMap;
-use std::io::Read;
+mod images;
+#[cfg(test)]
+mod tests;
+
+use std::io::{Read, Seek};
 use std::path::Path;
 
 use serde::Deserialize;
 
-use super::SplatFileProblem;
+use super::{MAX_IMPORTED_POINTS, SplatFileProblem};
 use crate::gaussians::Gaussians;
+use images::Layout;
 
-/// The largest decoded image, in bytes of RGBA, and the largest side.
-const MAX_IMAGE_BYTES: u64 = 1 << 30;
-const MAX_SIDE: u32 = 16384;
+/// A SOG's `meta.json` holds a few kilobytes (bounds and three 256-entry codebooks); a megabyte
+/// leaves room for indentation and unknown fields while bounding what parsing it allocates.
+const MAX_META_BYTES: u64 = 1 << 20;
+/// The most palette entries: a Gaussian's label is 16-bit, so more could never be used.
+const MAX_PALETTE: usize = 1 << 16;
 
 #[derive(Deserialize)]
 struct Meta {
@@ -72,48 +84,50 @@ fn problem(part: &str, message: impl Into<String>) -> SplatFileProblem {
     SplatFileProblem::Sog { part: part.to_string(), message: message.into() }
 }
 
-/// The files of a SOG: a zip archive's entries, or a folder's files (given its `meta.json`).
+/// Reads a SOG: a folder's files (given the folder or its `meta.json`), or a zip archive's
+/// entries.
 pub(super) fn read_sog(path: &Path) -> Result<Gaussians, SplatFileProblem> {
     if path.is_dir() || path.file_name().is_some_and(|n| n.eq_ignore_ascii_case("meta.json")) {
         let dir = if path.is_dir() { path } else { path.parent().unwrap_or(Path::new(".")) };
-        return gaussians_from_sog(|name| Ok(std::fs::read(dir.join(file_name(name)?))?));
+        return gaussians_from_sog(None, |name, cap| {
+            Ok(read_capped(std::fs::File::open(dir.join(file_name(name)?))?, cap)?)
+        });
     }
     let file = std::fs::File::open(path)?;
-    let mut archive = zip::ZipArchive::new(file).map_err(|e| problem("archive", format!("not a zip archive: {e}")))?;
-    let mut entries = HashMap::new();
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).map_err(|e| problem("archive", e.to_string()))?;
-        let name = entry.name().to_string();
-        if entry.size() > MAX_IMAGE_BYTES {
-            return Err(problem(&name, format!("{} bytes is more than a SOG file holds", entry.size())));
-        }
-        let mut bytes = Vec::with_capacity(entry.size() as usize);
-        entry.by_ref().take(MAX_IMAGE_BYTES).read_to_end(&mut bytes).map_err(|e| problem(&name, e.to_string()))?;
-        entries.insert(name, bytes);
-    }
-    gaussians_from_sog(|name| entries.remove(name).ok_or_else(|| problem(name, "missing from the archive")))
+    let archive_bytes = file.metadata()?.len();
+    from_archive(std::io::BufReader::new(file), archive_bytes)
+}
+
+/// Decodes a SOG archive (the bytes of a `.sog` file, a zip) into Gaussians in the INRIA PLY
+/// convention, as [`super::read_splat_file`] reads a `.sog` file.
+pub fn gaussians_from_sog_bytes(archive: &[u8]) -> Result<Gaussians, SplatFileProblem> {
+    from_archive(std::io::Cursor::new(archive), archive.len() as u64)
+}
+
+/// Only the entries `meta.json` names are opened, each read no further than its cap: the
+/// archive's directory (names, sizes, offsets) is untrusted, and its entries may overlap or
+/// decompress to anything.
+fn from_archive(reader: impl Read + Seek, archive_bytes: u64) -> Result<Gaussians, SplatFileProblem> {
+    let mut archive =
+        zip::ZipArchive::new(reader).map_err(|e| problem("archive", format!("not a zip archive: {e}")))?;
+    gaussians_from_sog(Some(archive_bytes), |name, cap| match archive.by_name(name) {
+        Ok(entry) => read_capped(entry, cap).map_err(|e| problem(name, e.to_string())),
+        Err(zip::result::ZipError::FileNotFound) => Err(problem(name, "missing from the archive")),
+        Err(e) => Err(problem(name, e.to_string())),
+    })
+}
+
+/// At most `cap + 1` bytes of `reader`: one past the cap shows that there is more.
+fn read_capped(reader: impl Read, cap: u64) -> std::io::Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    reader.take(cap.saturating_add(1)).read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
 /// A plain file name: meta.json may not point outside the SOG's folder.
 fn file_name(name: &str) -> Result<&str, SplatFileProblem> {
     let plain = !name.is_empty() && !name.contains(['/', '\\']) && name != "..";
     if plain { Ok(name) } else { Err(problem("meta.json", format!("`{name}` is not a file name"))) }
-}
-
-/// An RGBA image of at least `count` pixels.
-fn image(bytes: &[u8], name: &str, count: usize) -> Result<image::RgbaImage, SplatFileProblem> {
-    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::WebP);
-    let mut limits = image::Limits::default();
-    limits.max_image_width = Some(MAX_SIDE);
-    limits.max_image_height = Some(MAX_SIDE);
-    limits.max_alloc = Some(MAX_IMAGE_BYTES);
-    reader.limits(limits);
-    let decoded = reader.decode().map_err(|e| problem(name, format!("not a readable WebP image: {e}")))?.to_rgba8();
-    let pixels = decoded.width() as usize * decoded.height() as usize;
-    if pixels < count {
-        return Err(problem(name, format!("{pixels} pixels for {count} Gaussians")));
-    }
-    Ok(decoded)
 }
 
 fn one_file<'a>(files: &'a [String], part: &str, n: usize) -> Result<&'a [String], SplatFileProblem> {
@@ -128,47 +142,54 @@ fn entry(codebook: &[Option<f64>], index: u8, part: &str) -> Result<Option<f32>,
     }
 }
 
-/// Decodes a SOG whose files `load` returns by name.
+/// Decodes a SOG whose files `load(name, cap)` returns by name, each read no further than
+/// `cap + 1` bytes; `archive_bytes` is the size of the archive holding them (`None` for a
+/// folder, whose files are the input themselves).
 pub(super) fn gaussians_from_sog(
-    mut load: impl FnMut(&str) -> Result<Vec<u8>, SplatFileProblem>,
+    archive_bytes: Option<u64>,
+    mut load: impl FnMut(&str, u64) -> Result<Vec<u8>, SplatFileProblem>,
 ) -> Result<Gaussians, SplatFileProblem> {
+    let meta_bytes = load("meta.json", MAX_META_BYTES)?;
+    if meta_bytes.len() as u64 > MAX_META_BYTES {
+        return Err(problem("meta.json", format!("more than {MAX_META_BYTES} bytes (a SOG's holds a few kilobytes)")));
+    }
     let meta: Meta =
-        serde_json::from_slice(&load("meta.json")?).map_err(|e| problem("meta.json", format!("malformed: {e}")))?;
+        serde_json::from_slice(&meta_bytes).map_err(|e| problem("meta.json", format!("malformed: {e}")))?;
     if meta.version != 2 {
         return Err(problem("meta.json", format!("version {} (this reader reads version 2)", meta.version)));
     }
     let n = meta.count;
-    // Every texture holds a pixel per Gaussian but the palette, which holds its own count.
-    let mut texture = |name: &str, count: usize| -> Result<image::RgbaImage, SplatFileProblem> {
-        image(&load(file_name(name)?)?, name, count)
-    };
+    if n > MAX_IMPORTED_POINTS as usize {
+        let message = format!("count {n} is more than the {MAX_IMPORTED_POINTS} Gaussians a pwgs stream holds");
+        return Err(problem("meta.json", message));
+    }
     let means = one_file(&meta.means.files, "means", 2)?;
-    let (low, high) = (texture(&means[0], n)?, texture(&means[1], n)?);
-    let quats = texture(&one_file(&meta.quats.files, "quats", 1)?[0], n)?;
-    let scales = texture(&one_file(&meta.scales.files, "scales", 1)?[0], n)?;
-    let sh0 = texture(&one_file(&meta.sh0.files, "sh0", 1)?[0], n)?;
+    let mut planned = vec![(&means[0], Layout::Texture { count: n }), (&means[1], Layout::Texture { count: n })];
+    for (files, part) in [(&meta.quats.files, "quats"), (&meta.scales.files, "scales"), (&meta.sh0.files, "sh0")] {
+        planned.push((&one_file(files, part, 1)?[0], Layout::Texture { count: n }));
+    }
     let higher = match &meta.sh_n {
         Some(h) if h.bands > 0 => {
             let Some(&coeffs) = [3usize, 8, 15].get(h.bands as usize - 1) else {
                 return Err(problem("shN", format!("{} bands (1 to 3 expected)", h.bands)));
             };
-            let files = one_file(&h.files, "shN", 2)?;
-            let centroids = texture(&files[0], 0)?;
-            if centroids.width() as usize != 64 * coeffs || (centroids.height() as usize) * 64 < h.count {
-                return Err(problem(
-                    &files[0],
-                    format!(
-                        "{}x{} pixels for {} palette entries of {coeffs} coefficients",
-                        centroids.width(),
-                        centroids.height(),
-                        h.count
-                    ),
-                ));
+            if h.count > MAX_PALETTE {
+                let message =
+                    format!("{} palette entries, more than the {MAX_PALETTE} 16-bit labels can name", h.count);
+                return Err(problem("shN", message));
             }
-            Some((h, coeffs, centroids, texture(&files[1], n)?))
+            let files = one_file(&h.files, "shN", 2)?;
+            planned.push((&files[0], Layout::Palette { entries: h.count, coeffs }));
+            planned.push((&files[1], Layout::Texture { count: n }));
+            Some((h, coeffs))
         }
         _ => None,
     };
+    let planned: Vec<(&str, Layout)> = planned.into_iter().map(|(name, layout)| (name.as_str(), layout)).collect();
+    let mut images = images::read(&planned, archive_bytes, meta_bytes.len() as u64, &mut load)?.into_iter();
+    let mut next = || images.next().expect("one image per planned file");
+    let (low, high, quats, scales, sh0) = (next(), next(), next(), next(), next());
+    let higher = higher.map(|(h, coeffs)| (h, coeffs, next(), next()));
     let degree = higher.as_ref().map_or(0, |(h, ..)| h.bands);
     let mut out = Gaussians::with_degree(degree);
     let mut sh = vec![0.0f32; out.coeffs_per_channel() * 3];
@@ -236,196 +257,4 @@ pub(super) fn gaussians_from_sog(
         }
     }
     Ok(out)
-}
-
-#[cfg(test)]
-mod tests {
-    use std::io::Write;
-
-    use super::*;
-    use crate::random_scene::{SplitMix64, random_gaussians};
-
-    /// A lossless WebP of `n` RGBA pixels, `width` wide.
-    fn webp(pixels: &[[u8; 4]], width: u32) -> Vec<u8> {
-        let height = (pixels.len() as u32).div_ceil(width);
-        let mut data: Vec<u8> = pixels.iter().flatten().copied().collect();
-        data.resize((width * height * 4) as usize, 0);
-        let mut out = Vec::new();
-        image::codecs::webp::WebPEncoder::new_lossless(&mut out)
-            .encode(&data, width, height, image::ExtendedColorType::Rgba8)
-            .unwrap();
-        out
-    }
-
-    /// 256 levels spanning `values`, and each value's nearest level.
-    fn codebook(values: &[f32]) -> (Vec<f64>, Vec<u8>) {
-        let (lo, hi) = values.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-        let step = f64::from(hi - lo).max(1e-9) / 255.0;
-        let levels = (0..256).map(|k| f64::from(lo) + step * f64::from(k)).collect();
-        (levels, values.iter().map(|&v| (f64::from(v - lo) / step).round() as u8).collect())
-    }
-
-    /// `g` (SH degree 0 or 1) as the files of a SOG, the palette holding one entry per Gaussian.
-    fn sog_files(g: &Gaussians) -> Files {
-        let n = g.len();
-        let width = 16;
-        let log = |x: f32| f64::from(x).signum() * f64::from(x).abs().ln_1p();
-        let mins: [f64; 3] = std::array::from_fn(|a| g.means.iter().map(|m| log(m[a])).fold(f64::INFINITY, f64::min));
-        let maxs: [f64; 3] =
-            std::array::from_fn(|a| g.means.iter().map(|m| log(m[a])).fold(f64::NEG_INFINITY, f64::max));
-        let q16 = |i: usize, a: usize| ((log(g.means[i][a]) - mins[a]) / (maxs[a] - mins[a]) * 65535.0).round() as u16;
-        let bytes = |shift: u32| -> Vec<[u8; 4]> {
-            (0..n)
-                .map(|i| {
-                    let [x, y, z] = [0, 1, 2].map(|a| (q16(i, a) >> shift) as u8);
-                    [x, y, z, 255]
-                })
-                .collect()
-        };
-        let (low, high) = (bytes(0), bytes(8));
-        let quats: Vec<[u8; 4]> = g
-            .rotations
-            .iter()
-            .map(|q| {
-                let norm = q.iter().map(|v| v * v).sum::<f32>().sqrt();
-                let largest = (0..4).max_by(|&a, &b| q[a].abs().total_cmp(&q[b].abs())).unwrap();
-                let sign = q[largest].signum() / norm;
-                let mut small = (0..4).filter(|&c| c != largest).map(|c| {
-                    let v = f64::from(q[c] * sign) * std::f64::consts::SQRT_2;
-                    ((v + 1.0) / 2.0 * 255.0).round() as u8
-                });
-                [small.next().unwrap(), small.next().unwrap(), small.next().unwrap(), 252 + largest as u8]
-            })
-            .collect();
-        let flat =
-            |f: &dyn Fn(usize, usize) -> f32, k: usize| -> Vec<f32> { (0..n * k).map(|j| f(j / k, j % k)).collect() };
-        let (scale_book, scale_index) = codebook(&flat(&|i, a| g.log_scales[i][a], 3));
-        let (dc_book, dc_index) = codebook(&flat(&|i, c| g.sh_of(i)[c], 3));
-        let scales: Vec<[u8; 4]> =
-            (0..n).map(|i| [scale_index[3 * i], scale_index[3 * i + 1], scale_index[3 * i + 2], 255]).collect();
-        let sh0: Vec<[u8; 4]> = (0..n)
-            .map(|i| {
-                let alpha = 1.0 / (1.0 + f64::from(-g.opacity_logits[i]).exp());
-                [dc_index[3 * i], dc_index[3 * i + 1], dc_index[3 * i + 2], (alpha * 255.0).round() as u8]
-            })
-            .collect();
-        let mut meta = serde_json::json!({
-            "version": 2, "count": n,
-            "means": {"mins": mins, "maxs": maxs, "files": ["means_l.webp", "means_u.webp"]},
-            "scales": {"codebook": scale_book, "files": ["scales.webp"]},
-            "quats": {"files": ["quats.webp"]},
-            "sh0": {"codebook": dc_book, "files": ["sh0.webp"]},
-        });
-        let mut files: Files = [
-            ("means_l.webp", webp(&low, width)),
-            ("means_u.webp", webp(&high, width)),
-            ("quats.webp", webp(&quats, width)),
-            ("scales.webp", webp(&scales, width)),
-            ("sh0.webp", webp(&sh0, width)),
-        ]
-        .into_iter()
-        .map(|(k, v)| (k.to_string(), v))
-        .collect();
-        if g.sh_degree == 1 {
-            let (book, index) = codebook(&flat(&|i, k| g.sh_of(i)[3 + k], 9));
-            // Entry i's three pixels hold coefficient j's r, g, b indices.
-            let centroids: Vec<[u8; 4]> = (0..n * 3)
-                .map(|p| [0, 1, 2].map(|c| index[(p / 3) * 9 + (p % 3) * 3 + c]))
-                .map(|[r, g, b]| [r, g, b, 255])
-                .collect();
-            let labels: Vec<[u8; 4]> = (0..n).map(|i| [i as u8, (i >> 8) as u8, 0, 255]).collect();
-            files.insert("shN_centroids.webp".into(), webp(&centroids, 64 * 3));
-            files.insert("shN_labels.webp".into(), webp(&labels, width));
-            meta["shN"] = serde_json::json!({"count": n, "bands": 1, "codebook": book, "files": ["shN_centroids.webp", "shN_labels.webp"]});
-        }
-        files.insert("meta.json".into(), serde_json::to_vec(&meta).unwrap());
-        files
-    }
-
-    type Files = HashMap<String, Vec<u8>>;
-
-    fn read(files: &Files) -> Result<Gaussians, SplatFileProblem> {
-        gaussians_from_sog(|name| files.get(name).cloned().ok_or_else(|| problem(name, "missing")))
-    }
-
-    #[test]
-    fn reads_the_gaussians_within_the_formats_quantization() {
-        let g = random_gaussians(&mut SplitMix64(17), 300, 1, [-4.0, -1.0]);
-        let r = read(&sog_files(&g)).unwrap();
-        assert_eq!((r.len(), r.sh_degree), (300, 1));
-        let spread = |v: &dyn Fn(usize) -> f32, k: usize| {
-            let all: Vec<f32> = (0..300 * k).map(v).collect();
-            all.iter().fold(f32::NEG_INFINITY, |a, &b| a.max(b)) - all.iter().fold(f32::INFINITY, |a, &b| a.min(b))
-        };
-        let scale_step = spread(&|j| g.log_scales[j / 3][j % 3], 3) / 255.0;
-        let dc_step = spread(&|j| g.sh_of(j / 3)[j % 3], 3) / 255.0;
-        let rest_step = spread(&|j| g.sh_of(j / 9)[3 + j % 9], 9) / 255.0;
-        for i in 0..300 {
-            for a in 0..3 {
-                let (x, y) = (g.means[i][a], r.means[i][a]);
-                assert!((x - y).abs() <= (1.0 + x.abs()) * 12.0 / 65535.0, "mean {i} axis {a}: {x} vs {y}");
-                assert!((g.log_scales[i][a] - r.log_scales[i][a]).abs() <= scale_step * 0.51, "scale {i} axis {a}");
-                assert!((g.sh_of(i)[a] - r.sh_of(i)[a]).abs() <= dc_step * 0.51, "color {i} channel {a}");
-            }
-            for k in 3..12 {
-                assert!((g.sh_of(i)[k] - r.sh_of(i)[k]).abs() <= rest_step * 0.51, "sh {i} value {k}");
-            }
-            let unit = |q: [f32; 4]| q.map(|v| v / q.iter().map(|v| v * v).sum::<f32>().sqrt());
-            let dot: f32 = unit(g.rotations[i]).iter().zip(unit(r.rotations[i])).map(|(a, b)| a * b).sum();
-            assert!(dot.abs() > 0.999, "rotation {i}");
-            let alpha = |logit: f32| 1.0 / (1.0 + (-logit).exp());
-            assert!(
-                (alpha(g.opacity_logits[i]) - alpha(r.opacity_logits[i])).abs() <= 0.5 / 255.0 + 1e-5,
-                "opacity {i}"
-            );
-        }
-    }
-
-    #[test]
-    fn an_archive_and_a_folder_read_the_same() {
-        let g = random_gaussians(&mut SplitMix64(2), 50, 0, [-4.0, -1.0]);
-        let files = sog_files(&g);
-        let dir = tempfile::tempdir().unwrap();
-        let mut zip = zip::ZipWriter::new(std::fs::File::create(dir.path().join("m.sog")).unwrap());
-        let stored = zip::write::FileOptions::default().compression_method(zip::CompressionMethod::Stored);
-        for (name, bytes) in &files {
-            zip.start_file(name, stored).unwrap();
-            zip.write_all(bytes).unwrap();
-            std::fs::write(dir.path().join(name), bytes).unwrap();
-        }
-        zip.finish().unwrap();
-        let archive = read_sog(&dir.path().join("m.sog")).unwrap();
-        assert_eq!(archive, read_sog(&dir.path().join("meta.json")).unwrap());
-        assert_eq!(archive, read(&files).unwrap());
-        assert_eq!(archive.len(), 50);
-    }
-
-    #[test]
-    fn broken_files_are_errors_naming_the_part() {
-        let g = random_gaussians(&mut SplitMix64(3), 40, 1, [-4.0, -1.0]);
-        let files = sog_files(&g);
-        let message = |edit: &dyn Fn(&mut Files)| {
-            let mut f = files.clone();
-            edit(&mut f);
-            read(&f).unwrap_err().to_string()
-        };
-        let meta = |f: &mut Files, from: &str, to: &str| {
-            let text = String::from_utf8(f["meta.json"].clone()).unwrap().replace(from, to);
-            f.insert("meta.json".into(), text.into_bytes());
-        };
-        assert!(message(&|f| meta(f, "\"version\":2", "\"version\":1")).contains("version 1"));
-        assert!(message(&|f| meta(f, "\"count\":40", "\"count\":4000")).contains("pixels for 4000 Gaussians"));
-        assert!(
-            message(&|f| meta(f, "\"count\":40,\"files\"", "\"count\":10,\"files\""))
-                .contains("past the 10-entry palette")
-        );
-        assert!(message(&|f| meta(f, "quats.webp\"]", "../quats.webp\"]")).contains("is not a file name"));
-        assert!(message(&|f| drop(f.remove("scales.webp"))).contains("scales.webp"));
-        assert!(
-            message(&|f| drop(f.insert("sh0.webp".into(), b"RIFF".to_vec()))).contains("sh0.webp: not a readable WebP")
-        );
-        let tags = vec![[128, 128, 128, 7u8]; 40];
-        assert!(message(&|f| drop(f.insert("quats.webp".into(), webp(&tags, 16)))).contains("largest-component tag 7"));
-        assert!(message(&|f| meta(f, "\"version\"", "\"versio\"")).contains("meta.json: malformed"));
-    }
 }

@@ -36,7 +36,7 @@
 
 use std::io::{Read, Write};
 
-use super::SplatFileProblem;
+use super::{MAX_IMPORTED_POINTS, SplatFileProblem, decompressed_limit};
 use crate::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 
 /// Decompressed data beyond this many bytes is refused, before anything is allocated for it:
@@ -147,9 +147,11 @@ fn read_up_to(reader: &mut impl Read, limit: u64) -> Result<Vec<u8>, SplatFilePr
 /// Decodes SPZ bytes (versions 2 to 4) into Gaussians in the INRIA PLY convention; see the
 /// module documentation for the layout and the axis conversion.
 ///
-/// The header's point count is checked against [`SPZ_MAX_DECOMPRESSED_BYTES`] before reading
-/// and against the bytes actually decompressed before any Gaussian is allocated, so a hostile
-/// header cannot cause a large allocation. Data after the points is an error unless the header
+/// The header's point count is checked against [`MAX_IMPORTED_POINTS`], and the data it needs
+/// against [`decompressed_limit`] of the file's size and [`SPZ_MAX_DECOMPRESSED_BYTES`], before
+/// anything is decompressed; decompression stops one byte past what the header requires, and
+/// Gaussians are made only from data actually present, so a hostile header can neither inflate
+/// a bomb nor cause a large allocation. Data after the points is an error unless the header
 /// announces extension records. Every decoded value is finite by construction (the format
 /// stores only small integers); opacity bytes 0 and 255 are moved half a step inside (0, 1).
 /// A header declaring zero points gives an empty set. A file that names no coordinate system
@@ -162,6 +164,21 @@ pub fn gaussians_from_spz_bytes(bytes: &[u8], unmarked: SpzAxes) -> Result<Gauss
 /// Bytes the blocks of `points` points of SH `degree` take, with rotations of `rot_bytes`.
 fn data_bytes(points: u32, degree: u32, rot_bytes: usize) -> u64 {
     points as u64 * (9 + 1 + 3 + 3 + rot_bytes + 3 * sh_rest(degree)) as u64
+}
+
+/// Refuses a header whose `points` (taking `needed` bytes of data) a file of `file_bytes` cannot
+/// plausibly hold, before any of it is decompressed: more points than a pwgs stream holds, or
+/// more data than [`decompressed_limit`] allows (and at most [`SPZ_MAX_DECOMPRESSED_BYTES`]).
+fn check_declared(points: u32, needed: u64, file_bytes: usize) -> Result<(), SplatFileProblem> {
+    if points > MAX_IMPORTED_POINTS {
+        return Err(SplatFileProblem::TooManyPoints { points, limit: MAX_IMPORTED_POINTS });
+    }
+    let file_bytes = file_bytes as u64;
+    let limit = decompressed_limit(file_bytes).min(SPZ_MAX_DECOMPRESSED_BYTES);
+    if needed > limit {
+        return Err(SplatFileProblem::TooLarge { points, needed, limit, file_bytes });
+    }
+    Ok(())
 }
 
 /// Versions 2 and 3: the header and what follows it (the blocks, then any extension records)
@@ -188,10 +205,8 @@ fn gunzip(bytes: &[u8]) -> Result<(Vec<u8>, Vec<u8>), SplatFileProblem> {
         return Err(SplatFileProblem::ShDegree(head[12]));
     }
     let needed = data_bytes(points, degree, rotation_bytes(version));
+    check_declared(points, needed, bytes.len())?;
     let allowance = if head[14] & FLAG_EXTENSIONS != 0 { MAX_EXTENSION_BYTES } else { 0 };
-    if needed + allowance > SPZ_MAX_DECOMPRESSED_BYTES {
-        return Err(SplatFileProblem::TooLarge { points, needed, limit: SPZ_MAX_DECOMPRESSED_BYTES });
-    }
     // One byte past what may follow tells trailing data apart from the end of the stream.
     let body = read_up_to(&mut reader, needed + allowance + 1)?;
     Ok((head, body))
@@ -221,10 +236,7 @@ fn unpack_v4(bytes: &[u8]) -> Result<(Vec<u8>, Vec<u8>), SplatFileProblem> {
     if degree > 0 {
         sizes.push(3 * sh_rest(degree) as u64 * n);
     }
-    let needed: u64 = sizes.iter().sum();
-    if needed > SPZ_MAX_DECOMPRESSED_BYTES {
-        return Err(SplatFileProblem::TooLarge { points, needed, limit: SPZ_MAX_DECOMPRESSED_BYTES });
-    }
+    check_declared(points, sizes.iter().sum(), bytes.len())?;
     let bad = |message: String| SplatFileProblem::BadStreams { message };
     let (streams, toc) = (bytes[15] as usize, u32_at(bytes, 16) as usize);
     if streams != sizes.len() {
@@ -238,7 +250,8 @@ fn unpack_v4(bytes: &[u8]) -> Result<(Vec<u8>, Vec<u8>), SplatFileProblem> {
     if extensions.len() as u64 > MAX_EXTENSION_BYTES {
         return Err(bad(format!("{} bytes of extension records", extensions.len())));
     }
-    let mut body = Vec::with_capacity(needed as usize + extensions.len());
+    // Grown as the streams decompress: the table's sizes are only claims until then.
+    let mut body = Vec::new();
     for (i, &size) in sizes.iter().enumerate() {
         let entry = &bytes[toc + 16 * i..];
         let u64_at = |k: usize| u64::from_le_bytes(entry[k..k + 8].try_into().expect("8 bytes"));

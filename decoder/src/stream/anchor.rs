@@ -38,6 +38,29 @@ pub fn values_per_anchor(feature_dim: usize, offsets: usize) -> u64 {
     (feature_dim + 6 + 4 * offsets) as u64
 }
 
+/// Multiply-adds the networks of a stream may cost per byte of its length (SPEC.md section 9):
+/// the view networks per anchor and view (12.1), the context network per anchor (12.7). With
+/// the count bound, a decoder's work on a view is proportional to the stream's size, whatever
+/// the widths it declares (a 1 MB stream costs at most about 2^30 multiply-adds per view).
+pub const MULTIPLY_ADDS_PER_BYTE: u64 = 1024;
+
+/// Unmasked offsets (neural Gaussians a view may show) a stream may hold per byte of its
+/// length (SPEC.md section 12.3): as many as a plain stream may hold Gaussians, so that a
+/// view's Gaussians, and the memory to render them, are bounded by the stream's size.
+pub const NEURAL_GAUSSIANS_PER_BYTE: u64 = 1;
+
+/// Multiply-adds of the three view networks for one anchor (SPEC.md section 12.1): network m
+/// has `F + 4` inputs, `H_m` hidden units and `O_m` = K, 3K, 7K outputs.
+pub fn view_multiply_adds(feature_dim: usize, offsets: usize, hidden: [usize; 3]) -> u64 {
+    hidden.iter().zip([1, 3, 7]).map(|(&h, o)| h as u64 * (feature_dim + 4 + o * offsets) as u64).sum()
+}
+
+/// Whether `count` units of `each` fit in a stream of `stream_len` bytes at `per_byte` (computed
+/// exactly: the products fit in u128).
+pub(super) fn fits_per_byte(count: usize, each: u64, per_byte: u64, stream_len: usize) -> bool {
+    count as u128 * u128::from(each) <= u128::from(per_byte) * stream_len as u128
+}
+
 /// One MLP as the stream holds it: `w1, b1, w2, b2` (row-major [output][input]) as integers,
 /// weights times 2^weight_exponent and biases times 2^bias_exponent.
 #[derive(Debug, Clone, PartialEq)]
@@ -230,8 +253,7 @@ impl QuantizedAnchors {
         let (networks, positions, features, scaling, masks, offsets) =
             (networks?, positions?, features?, scaling?, masks?, offsets?);
         let (feature_dim, k, mlps) = read_networks(networks)?;
-        let values = count as u64 * values_per_anchor(feature_dim, k);
-        if values > VALUES_PER_BYTE * stream_len as u64 {
+        if !fits_per_byte(count, values_per_anchor(feature_dim, k), VALUES_PER_BYTE, stream_len) {
             return Err(DecodeError::invalid(
                 NETWORKS,
                 format!(
@@ -241,16 +263,37 @@ impl QuantizedAnchors {
                 ),
             ));
         }
+        let work = view_multiply_adds(feature_dim, k, mlps.each_ref().map(|m| m.hidden));
+        if !fits_per_byte(count, work, MULTIPLY_ADDS_PER_BYTE, stream_len) {
+            return Err(DecodeError::invalid(
+                NETWORKS,
+                format!(
+                    "{count} anchors of {work} multiply-adds each exceed the stream's length of {stream_len} bytes \
+                     (at most {MULTIPLY_ADDS_PER_BYTE} multiply-adds per byte)"
+                ),
+            ));
+        }
         let (grid, positions) = read_positions(ANCHOR_POSITIONS, positions, count)?;
         let read_masks = || -> Result<Vec<bool>, DecodeError> {
             let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), Rows::plain(count))?;
-            Ok(masks.into_iter().map(|m| m == 1).collect())
+            let masks: Vec<bool> = masks.into_iter().map(|m| m == 1).collect();
+            let open = masks.iter().filter(|&&m| m).count();
+            if !fits_per_byte(open, 1, NEURAL_GAUSSIANS_PER_BYTE, stream_len) {
+                return Err(DecodeError::invalid(
+                    MASKS,
+                    format!(
+                        "{open} unmasked offsets exceed the stream's length of {stream_len} bytes \
+                         (at most {NEURAL_GAUSSIANS_PER_BYTE} per byte)"
+                    ),
+                ));
+            }
+            Ok(masks)
         };
         let (context, masks, blocks) = match container.section(CONTEXT) {
             // With ACTX: the masks first, then the three blocks together (SPEC.md 12.7).
             Some(section) => {
                 let values = predicted_values(feature_dim, k);
-                let context = QuantizedContext::read(section.payload, grid.depth, values, stream_len)?;
+                let context = QuantizedContext::read(section.payload, grid.depth, values, (count, stream_len))?;
                 let masks = read_masks()?;
                 let blocks = {
                     let mut models = AnchorModels::new(&context, grid.depth, feature_dim, k);

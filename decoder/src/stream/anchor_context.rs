@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
-use super::anchor::{QuantizedAnchors, QuantizedMlp, bounded, exponent, within};
+use super::anchor::{MULTIPLY_ADDS_PER_BYTE, QuantizedAnchors, QuantizedMlp, bounded, exponent, fits_per_byte, within};
 use super::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::{GaussianModel, MAX_MEAN, MEAN_DENOMINATOR, SCALE_OFFSET};
 use crate::anchor::Mlp;
@@ -45,6 +45,14 @@ pub struct QuantizedContext {
 /// Values an anchor's network predicts: F features, 6 scaling values, 3K offsets.
 pub fn predicted_values(feature_dim: usize, offsets: usize) -> usize {
     feature_dim + 6 + 3 * offsets
+}
+
+/// Multiply-adds of one anchor's context and network (SPEC.md section 12.7): `8 I` for the
+/// context (at most 8 weighted corners per input) and `H (I + 2 V)` for the network, with `I`
+/// the context's length and `V` the values it predicts.
+pub fn context_multiply_adds(shape: &ContextGridShape, hidden: usize, values: usize) -> u64 {
+    let inputs = shape.context_len() as u64;
+    8 * inputs + hidden as u64 * (inputs + 2 * values as u64)
 }
 
 /// The quantized-Gaussian model of a value from the network's outputs for its mean `u` (in
@@ -164,9 +172,15 @@ impl QuantizedContext {
         w.into_bytes()
     }
 
-    /// Reads `ACTX` for anchors of `values` predicted values on an octree of `depth`, in a
-    /// stream of `stream_len` bytes (the grid may hold at most 64 entries per byte of it).
-    pub fn read(payload: &[u8], depth: u8, values: usize, stream_len: usize) -> Result<Self, DecodeError> {
+    /// Reads `ACTX` for `count` anchors of `values` predicted values on an octree of `depth`,
+    /// in a stream of `stream_len` bytes (the grid may hold at most 64 entries per byte of it,
+    /// and the network cost at most [`MULTIPLY_ADDS_PER_BYTE`] per byte over the anchors).
+    pub fn read(
+        payload: &[u8],
+        depth: u8,
+        values: usize,
+        (count, stream_len): (usize, usize),
+    ) -> Result<Self, DecodeError> {
         let mut r = FieldReader::new("ACTX", payload);
         let levels = bounded(&mut r, "levels", MAX_LEVELS)?;
         let levels = (0..levels).map(|_| level(&mut r, "level")).collect::<Result<Vec<u8>, FieldError>>()?;
@@ -188,6 +202,16 @@ impl QuantizedContext {
             ));
         }
         let hidden = bounded(&mut r, "hidden width", MAX_CONTEXT_HIDDEN)?;
+        let work = context_multiply_adds(&shape, hidden, values);
+        if !fits_per_byte(count, work, MULTIPLY_ADDS_PER_BYTE, stream_len) {
+            return Err(DecodeError::invalid(
+                CONTEXT,
+                format!(
+                    "{count} anchors of {work} multiply-adds each exceed the stream's length of {stream_len} bytes \
+                     (at most {MULTIPLY_ADDS_PER_BYTE} multiply-adds per byte)"
+                ),
+            ));
+        }
         let (weight_exponent, bias_exponent) =
             (exponent(&mut r, "weight step exponent")?, exponent(&mut r, "bias step exponent")?);
         let inputs = shape.context_len();

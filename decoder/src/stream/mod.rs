@@ -144,10 +144,28 @@ impl ContentRef<'_> {
         match self {
             ContentRef::Plain(p) => p.len(),
             ContentRef::Anchors(a) => {
-                let values = a.len() as u64 * anchor::values_per_anchor(a.feature_dim, a.offsets_per_anchor);
+                let (n, f, k) = (a.len() as u64, a.feature_dim, a.offsets_per_anchor);
+                let values = n * anchor::values_per_anchor(f, k);
+                let view_work = n * anchor::view_multiply_adds(f, k, a.mlps.each_ref().map(|m| m.hidden));
+                let context_work = a.context.as_ref().map_or(0, |c| {
+                    n * anchor_context::context_multiply_adds(
+                        &c.shape,
+                        c.mlp.hidden,
+                        anchor_context::predicted_values(f, k),
+                    )
+                });
                 let grid_bits = a.context.as_ref().map_or(0, |c| c.signs.len() as u64);
-                let grid = grid_bits.div_ceil(anchor_context::GRID_BITS_PER_BYTE) as usize;
-                a.len().max(values.div_ceil(anchor::VALUES_PER_BYTE) as usize).max(grid)
+                let open = a.masks.iter().filter(|&&m| m).count() as u64;
+                [
+                    n,
+                    values.div_ceil(anchor::VALUES_PER_BYTE),
+                    view_work.max(context_work).div_ceil(anchor::MULTIPLY_ADDS_PER_BYTE),
+                    grid_bits.div_ceil(anchor_context::GRID_BITS_PER_BYTE),
+                    open.div_ceil(anchor::NEURAL_GAUSSIANS_PER_BYTE),
+                ]
+                .into_iter()
+                .max()
+                .unwrap_or(0) as usize
             }
         }
     }

@@ -93,7 +93,8 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
     say!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), stream.path, stream.bytes);
     let mut orbit_psnr = Vec::new();
     if let Some(orbit) = &job.orbit {
-        let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)?;
+        let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)
+            .with_context(|| views_problem("orbit", &context))?;
         let decoded_scene = &compressed.decoded.scene;
         let (frame, background) = (decoded_scene.frame, decoded_scene.background);
         let input = Scene { base: Base::Plain(gaussians), wrapper: None, frame, background };
@@ -133,6 +134,13 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
         write_report(path, &report)?;
     }
     Ok(report)
+}
+
+/// What to say when views around the model cannot be placed: cameras are binary32, and a model
+/// whose radius is beyond about 1e19 (positions that far from their median) puts them where a
+/// direction's squared length overflows.
+fn views_problem(views: &str, context: &StreamContext) -> String {
+    format!("cannot place the {views} views {:e} from the model's center {:?}", context.scale, context.center)
 }
 
 /// `--search-steps` scores candidates on every third importance view (19 of 57), a third of
@@ -185,7 +193,8 @@ fn plan_coding(
         return Ok(plan);
     }
     let start = Instant::now();
-    let cameras = importance::cameras(context, Vec3::from(job.up), importance::VIEW_SIZE)?;
+    let cameras = importance::cameras(context, Vec3::from(job.up), importance::VIEW_SIZE)
+        .with_context(|| views_problem("importance", context))?;
     let weights = importance::blend_weights(gaussians, &cameras, options);
     let hidden = weights.iter().filter(|&&w| w == 0.0).count();
     say!(

@@ -56,6 +56,9 @@ pub struct StreamSummary {
     pub dropped_faint: usize,
     /// Visible Gaussians dropped to meet the target size.
     pub pruned_to_fit: usize,
+    /// Gaussians dropped, the least important first, where more than 255 shared one cell of the
+    /// finest position grid (many at one position): a stream cell holds at most 255.
+    pub dropped_crowded: usize,
     pub target_bytes: Option<u64>,
     pub sh_degree_in: u32,
     pub sh_degree: u32,
@@ -118,6 +121,7 @@ fn write_stream(
         dropped_invisible: compressed.invisible,
         dropped_faint: compressed.faint,
         pruned_to_fit: compressed.pruned,
+        dropped_crowded: compressed.crowded,
         target_bytes: options.target_bytes,
         sh_degree_in: g.sh_degree,
         sh_degree: header.sh_degree,
@@ -135,6 +139,13 @@ fn write_stream(
         summary.dropped_invisible,
         summary.seconds
     );
+    if summary.dropped_crowded > 0 {
+        eprintln!(
+            "warning: {} Gaussians dropped where more than 255 shared one cell of the finest position grid \
+             (each such cell keeps its 255 most important; a stream cell holds no more)",
+            summary.dropped_crowded
+        );
+    }
     if options.prune_faint {
         say!("{} Gaussians too faint in the importance views dropped (--prune-faint)", summary.dropped_faint);
     }

@@ -192,11 +192,14 @@ fn bad_headers_are_named() {
     assert_eq!(err, "the SPZ header declares 3 points, which need 60 bytes of data, but the data holds 40");
     let err = edit(8, &1u32.to_le_bytes());
     assert_eq!(err, "data continues after the 1 points, and the SPZ header announces no extension records");
-    // Far more points than the limit: refused from the header alone.
-    let err = [edit(8, &u32::MAX.to_le_bytes()), edit(8, &60_000_000u32.to_le_bytes())];
-    assert!(err.iter().all(|e| e.contains("more than the 1073741824-byte limit")), "{err:?}");
-    // Below the limit but far beyond the data: only the data present is ever read.
-    assert!(edit(8, &10_000_000u32.to_le_bytes()).ends_with("but the data holds 40"));
+    // More points than a pwgs stream holds: refused from the header alone.
+    let err = [edit(8, &u32::MAX.to_le_bytes()), edit(8, &53_000_000u32.to_le_bytes())];
+    assert!(err.iter().all(|e| e.contains("points, more than the 16777216 a pwgs stream holds")), "{err:?}");
+    // Within that, but more data than a file of this size may decompress to.
+    let err = edit(8, &10_000_000u32.to_le_bytes());
+    assert!(err.contains("10000000 points, which need 200000000 bytes of data, more than the"), "{err}");
+    // Within both but beyond the data: only the data present is ever read.
+    assert!(edit(8, &50_000u32.to_le_bytes()).ends_with("but the data holds 40"));
 
     // Version 4 keeps its header outside any compression.
     let v4 = [b"NGSP".as_slice(), &4u32.to_le_bytes(), &[0; 24]].concat();
@@ -346,4 +349,68 @@ fn the_writer_chooses_fractional_bits_that_fit() {
     assert_eq!(gunzip(&bytes)[13], 10, "2^10 * 5000 fits 24 bits, 2^11 * 5000 does not");
     let back = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap();
     assert_close(&back.means[1], &g.means[1], 0.5 / 1024.0);
+}
+
+/// A gzip stream of `raw` followed by `zeros` zero bytes, compressed as far as gzip goes.
+fn gzip_with_zeros(raw: &[u8], zeros: usize) -> Vec<u8> {
+    let mut encoder = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+    encoder.write_all(raw).unwrap();
+    let block = vec![0u8; 1 << 20];
+    for start in (0..zeros).step_by(block.len()) {
+        encoder.write_all(&block[..block.len().min(zeros - start)]).unwrap();
+    }
+    encoder.finish().unwrap()
+}
+
+#[test]
+fn decompression_bombs_are_refused_before_they_are_inflated() {
+    // 53 million points of degree 0 (1.06 GB of data; 64 MiB of it here, in 65 KB).
+    let bomb = gzip_with_zeros(&header(3, 53_000_000, 0, 0), 64 << 20);
+    let err = gaussians_from_spz_bytes(&bomb, SpzAxes::Rub).unwrap_err();
+    assert!(matches!(err, SplatFileProblem::TooManyPoints { points: 53_000_000, limit: 16_777_216 }), "{err}");
+    // 4 million points, fewer than a stream holds, whose 84 MB of data is all there: zeros,
+    // which gzip shrinks 1000 times. Refused from the header, against the file's size.
+    let points = 1u32 << 22;
+    let needed = 20 * u64::from(points);
+    let bomb = gzip_with_zeros(&header(3, points, 0, 0), needed as usize);
+    let file_bytes = bomb.len() as u64;
+    assert!(file_bytes < 100_000, "{file_bytes} bytes");
+    let err = gaussians_from_spz_bytes(&bomb, SpzAxes::Rub).unwrap_err();
+    let limit = 32 * file_bytes + (1 << 20);
+    assert!(
+        matches!(err, SplatFileProblem::TooLarge { points: p, needed: n, limit: l, file_bytes: f }
+            if p == points && n == needed && l == limit && f == file_bytes),
+        "{err}"
+    );
+    // Version 4: the same counts in its plain header, the streams never opened.
+    let v4 = |points: u32| [b"NGSP".as_slice(), &4u32.to_le_bytes(), &points.to_le_bytes(), &[0; 20]].concat();
+    let err = gaussians_from_spz_bytes(&v4(53_000_000), SpzAxes::Rub).unwrap_err().to_string();
+    assert!(err.contains("53000000 points, more than the 16777216"), "{err}");
+    let err = gaussians_from_spz_bytes(&v4(1 << 24), SpzAxes::Rub).unwrap_err().to_string();
+    assert!(
+        err.contains("which need 335544320 bytes of data, more than the 1049600-byte limit for a 32-byte"),
+        "{err}"
+    );
+}
+
+#[test]
+fn repetitive_files_within_the_allowance_are_read() {
+    // 50,000 identical points: 1 MB of data from about 1 KB, within the allowance.
+    let g = random_gaussians(&mut SplitMix64(12), 1, 0, [-3.0, -1.0]);
+    let raw = gunzip(&gaussians_to_spz_bytes(&g, SpzVersion::V3));
+    let n = 50_000;
+    let mut many = header(3, n as u32, 0, 0);
+    many[13] = raw[13];
+    for (offset, size) in [(16, 9), (25, 1), (26, 3), (29, 3), (32, 4)] {
+        many.extend(raw[offset..offset + size].repeat(n));
+    }
+    let bytes = gzip_with_zeros(&many, 0);
+    assert!(bytes.len() < 10_000, "{} bytes", bytes.len());
+    let back = gaussians_from_spz_bytes(&bytes, SpzAxes::Rub).unwrap();
+    assert_eq!(back.len(), n);
+    assert_eq!(back.means[n - 1], gaussians_from_spz_bytes(&gzip(&raw), SpzAxes::Rub).unwrap().means[0]);
+    // Data past what the header needs is read no further than one byte past it.
+    let trailing = gzip_with_zeros(&raw, 16 << 20);
+    let err = gaussians_from_spz_bytes(&trailing, SpzAxes::Rub).unwrap_err();
+    assert!(matches!(err, SplatFileProblem::TrailingData { points: 1 }), "{err}");
 }

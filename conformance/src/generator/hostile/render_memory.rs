@@ -1,0 +1,177 @@
+//! Hostile streams of classes 1 and 2 (rendering memory, the anchor base's work): valid
+//! streams at the limits SPEC.md section 9 sets per byte, whose views are heavy to derive or to
+//! render, with the cameras to render them from. Each must decode and render within the
+//! resource test's memory and time.
+
+use glam::Vec3;
+use pwgs_decoder::camera::{Camera, Intrinsics};
+use pwgs_decoder::camera_json::camera_to_json;
+use pwgs_decoder::context_grid::ContextGridShape;
+use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
+use pwgs_decoder::stream::anchor_context::{QuantizedContext, predicted_values};
+use pwgs_decoder::stream::header::{BaseKind, Header};
+use pwgs_decoder::stream::plain::PositionGrid;
+use pwgs_decoder::stream::{self, Content};
+
+use super::super::content::{Draws, gaussians, header, ordinary, unit_cube};
+use super::{Hostile, HostileEntry, Outcome, Tool};
+
+/// A camera `width` x `height` 3.4 units in front of the unit cube, looking at its centre.
+fn camera(width: u32, height: u32) -> Camera {
+    let f = width as f32 * 0.9;
+    let intrinsics = Intrinsics { width, height, fx: f, fy: f, cx: width as f32 / 2.0, cy: height as f32 / 2.0 };
+    Camera::look_at(intrinsics, Vec3::new(0.4, -0.6, -3.4), Vec3::ZERO, Vec3::new(0.0, -1.0, 0.0))
+        .expect("a valid camera")
+}
+
+/// The camera file of a `width` x `height` view, named after its size.
+pub fn view(width: u32, height: u32) -> (String, Vec<u8>) {
+    (format!("view-{width}x{height}.json"), format!("{}\n", camera_to_json(&camera(width, height))).into_bytes())
+}
+
+/// The views the hostile streams are rendered from.
+pub fn views() -> Vec<(String, Vec<u8>)> {
+    vec![view(1920, 1080), view(320, 240), view(64, 48)]
+}
+
+fn accepted(file: &str, class: u8, view: Option<(u32, u32)>, description: String, bytes: Vec<u8>) -> Hostile {
+    let entry = HostileEntry {
+        class,
+        tool: Tool::Pwdec,
+        view: view.map(|(w, h)| format!("view-{w}x{h}.json")),
+        outcome: Outcome::Accepted,
+        description,
+    };
+    Hostile { file: file.to_string(), entry, bytes }
+}
+
+/// 60,000 plain Gaussians of scale about 1 (the cube is 2 across) on a 64^3 grid: every
+/// splat covers most of a 1920x1080 view, 490M tile-list entries if binned at once.
+fn large_plain_gaussians() -> Vec<u8> {
+    let mut draws = Draws::new(4601);
+    let positions = (0..60_000).map(|_| draws.point(6)).collect();
+    let (steps, mut ranges) = ordinary(0);
+    // Narrow ranges: the file stays near the 60,000 bytes its count needs.
+    (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc) = ([-8, 0], [-4, 4], [8, 24], [-8, 8]);
+    let content = gaussians(&mut draws, unit_cube(6), positions, 0, steps, &ranges);
+    stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
+}
+
+/// `n` anchors in distinct cells of a 32^3 grid over [-1, 1]^3 with every value 0 and every
+/// mask open: their neural Gaussians sit at the anchors, scale 1/2, opacity tanh(5/8), grey.
+/// The networks' weights are 0 and their biases set that; the writer pads the stream to the
+/// least length its counts allow, so the stream is exactly at SPEC.md's per-byte limits.
+fn uniform_anchors(n: usize, (f, k): (usize, usize), hidden: [usize; 3]) -> QuantizedAnchors {
+    assert!(n <= 1 << 15, "distinct cells of a 32^3 grid");
+    let network = |m: usize, outputs: usize, bias: &dyn Fn(usize) -> i32| QuantizedMlp {
+        hidden: hidden[m],
+        weight_exponent: -7,
+        bias_exponent: -6,
+        w1: vec![0; hidden[m] * (f + 4)],
+        b1: vec![0; hidden[m]],
+        w2: vec![0; outputs * hidden[m]],
+        b2: (0..outputs).map(bias).collect(),
+    };
+    QuantizedAnchors {
+        grid: PositionGrid { origin: [-1.0; 3], cell: 0.0625, depth: 5 },
+        positions: (0..n as u32).map(|i| [i % 32, (i / 32) % 32, i / 1024]).collect(),
+        feature_dim: f,
+        offsets_per_anchor: k,
+        feature_step: 0.125,
+        features: vec![0; n * f],
+        scaling_step: 0.0625,
+        scaling: vec![[0; 6]; n],
+        offset_step: 0.25,
+        offsets: vec![0; n * 3 * k],
+        masks: vec![true; n * k],
+        mlps: [
+            network(0, k, &|_| 40),
+            network(1, 3 * k, &|_| 0),
+            network(2, 7 * k, &|o| if o % 7 == 3 { 64 } else { 0 }),
+        ],
+        context: None,
+    }
+}
+
+fn anchor_stream(content: &QuantizedAnchors) -> Vec<u8> {
+    let header = Header {
+        base: BaseKind::Anchors,
+        gaussian_count: content.len() as u32,
+        sh_degree: 0,
+        center: [0.0; 3],
+        scale: 1.0,
+        background: [0.1, 0.1, 0.1],
+    };
+    let bytes = stream::encode(&header, content, None).expect("the anchors fit the octree");
+    let decoded = stream::decode(&bytes).expect("the writer's stream decodes");
+    assert!(matches!(decoded.content, Content::Anchors(_)));
+    bytes
+}
+
+/// A context model whose network costs the most a stream of its length allows: 16 levels and
+/// 16 plane levels of resolution 2 (dense, small), 8 channels and 128 hidden units, so 512
+/// inputs and 75,776 multiply-adds per anchor.
+fn widest_context(content: &mut QuantizedAnchors) {
+    let shape = ContextGridShape { levels: vec![1; 16], planes: vec![1; 16], table_log2: 12, channels: 8 };
+    let mut draws = Draws::new(4602);
+    let signs = (0..shape.entries(content.grid.depth) * 8).map(|_| draws.i32([0, 1]) == 1).collect();
+    let (inputs, hidden) = (shape.context_len(), 128);
+    let outputs = 2 * predicted_values(content.feature_dim, content.offsets_per_anchor);
+    let mlp = QuantizedMlp {
+        hidden,
+        weight_exponent: -8,
+        bias_exponent: -8,
+        w1: vec![0; hidden * inputs],
+        b1: vec![0; hidden],
+        w2: vec![0; outputs * hidden],
+        // Means 0, log2 scales 4 units.
+        b2: (0..outputs).map(|o| if o < outputs / 2 { 0 } else { 1024 }).collect(),
+    };
+    content.context = Some(QuantizedContext { shape, signs, mlp });
+}
+
+pub fn files() -> Vec<Hostile> {
+    let neural = uniform_anchors(6000, (6, 14), [8, 8, 8]);
+    let mut widest_networks = uniform_anchors(700, (256, 64), [256; 3]);
+    widest_networks.scaling.fill([0, 0, 0, -24, -24, -24]);
+    let mut context = uniform_anchors(3500, (6, 4), [1; 3]);
+    widest_context(&mut context);
+    vec![
+        accepted(
+            "plain-60k-large.pwb",
+            1,
+            Some((1920, 1080)),
+            "60,000 plain Gaussians of scale e^-0.25 to 1 and opacity 0.62 to 0.82 in the unit cube: each covers most of a \
+             1920x1080 view, 490M tile-list entries (2 GB) if a renderer bins them at once."
+                .into(),
+            large_plain_gaussians(),
+        ),
+        accepted(
+            "anchors-neural-gaussians-at-limit.pwb",
+            1,
+            Some((320, 240)),
+            "6,000 anchors with K = 14 and every mask open: 84,000 neural Gaussians of scale 1/2 in an 84,000-byte \
+             stream (M = L, the most SPEC 12.3 allows), 25M tile-list entries at 320x240."
+                .into(),
+            anchor_stream(&neural),
+        ),
+        accepted(
+            "anchors-view-networks-at-limit.pwb",
+            2,
+            Some((64, 48)),
+            "700 anchors with F = 256, K = 64 and hidden widths 256: 379,904 multiply-adds per anchor and view, \
+             1024 per byte of stream (the limit of SPEC 12.1), 44,800 neural Gaussians."
+                .into(),
+            anchor_stream(&widest_networks),
+        ),
+        accepted(
+            "anchors-context-network-at-limit.pwb",
+            2,
+            None,
+            "3,500 anchors with a context model of 32 levels and planes, 8 channels and 128 hidden units: 75,776 \
+             multiply-adds per anchor, 1024 per byte of stream (the limit of SPEC 12.7)."
+                .into(),
+            anchor_stream(&context),
+        ),
+    ]
+}
