@@ -12,6 +12,7 @@ use std::path::Path;
 use pwgs_decoder::camera_json::parse_camera;
 use pwgs_decoder::gpu::{GpuRenderer, Output};
 use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians, wrapped_random_scene};
+use pwgs_decoder::raster::tiles::BinBudget;
 use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::stream;
 
@@ -98,6 +99,25 @@ fn a_random_scene_renders_alike_on_the_gpu() {
         eprintln!("{output:?}: max {max:.2e}, mean {mean:.2e}; {times:?}");
         assert!(max < 1e-4 && mean < 1e-6, "{output:?}: difference max {max}, mean {mean}");
         assert!(within_render_tolerance(&cpu.image, &gpu_shown.image), "{output:?}: max difference {max}");
+    }
+}
+
+/// Blended window by window within a small budget (bands of tile rows, spans of a row), the
+/// view is the one the default budget gives, bit for bit: every pixel reads the same list.
+#[test]
+fn a_view_blended_in_many_windows_is_the_same_view() {
+    let Some(mut gpu) = renderer() else { return };
+    let mut rng = SplitMix64(17);
+    let gaussians = random_gaussians(&mut rng, 2000, 1, [-3.0, -1.0]);
+    let camera = axis_camera(150, 90, 130.0, 128.0, 75.0, 45.0);
+    let scene = wrapped_random_scene(&mut rng, gaussians, [0.2, 0.3, 0.4]);
+    let options = scene.render_options();
+    let prepared = gpu.prepare(&scene).unwrap();
+    let (whole, _) = gpu.render(&scene, &prepared, &camera, &options, Output::Base).unwrap();
+    for budget in [BinBudget { entries: 3000, pixels: 1 << 20 }, BinBudget { entries: 1 << 30, pixels: 512 }] {
+        gpu.set_bin_budget(budget);
+        let (windowed, _) = gpu.render(&scene, &prepared, &camera, &options, Output::Base).unwrap();
+        assert_eq!(windowed.image, whole.image, "{budget:?}");
     }
 }
 

@@ -97,6 +97,8 @@ pub struct GpuRenderer {
     project: project::ProjectPass,
     blend: blend::BlendPass,
     synthesis: synthesis::SynthesisPass,
+    /// How much of a view's tile lists one blend pass holds ([`BinBudget::DEFAULT`]).
+    bin_budget: BinBudget,
 }
 
 /// A scene made ready for [`GpuRenderer::render`]: a plain base's Gaussians on the device
@@ -157,7 +159,13 @@ impl GpuRenderer {
         let project = project::ProjectPass::new(&device);
         let blend = blend::BlendPass::new(&device);
         let synthesis = synthesis::SynthesisPass::new(&device);
-        Ok(Self { device, queue, adapter, project, blend, synthesis })
+        Ok(Self { device, queue, adapter, project, blend, synthesis, bin_budget: BinBudget::DEFAULT })
+    }
+
+    /// Blends views window by window within `budget` (tests use small ones to exercise many
+    /// windows; the default bounds a view's tile lists at 64 MiB).
+    pub fn set_bin_budget(&mut self, budget: BinBudget) {
+        self.bin_budget = budget;
     }
 
     /// Makes `scene` ready to render: uploads a plain base's Gaussians.
@@ -205,7 +213,7 @@ impl GpuRenderer {
         let start = Instant::now();
         let (order, boxes) = projected.front_to_back(self)?;
         let bbox = |k: usize| boxes[order[k] as usize];
-        let windows = tiles::bounded_windows(order.len(), bbox, Window::full(camera), BinBudget::DEFAULT);
+        let windows = tiles::bounded_windows(order.len(), bbox, Window::full(camera), self.bin_budget);
         times.sort = start.elapsed();
 
         // Window by window, as the CPU renderer does: the tile lists of a view stay bounded

@@ -10,6 +10,8 @@ mod imports_bombs;
 mod imports_geometry;
 pub mod render_memory;
 
+pub use render_memory::at_one_megabyte;
+
 use std::collections::BTreeMap;
 use std::path::Path;
 

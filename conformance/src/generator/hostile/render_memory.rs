@@ -62,7 +62,7 @@ fn large_plain_gaussians() -> Vec<u8> {
 /// The networks' weights are 0 and their biases set that; the writer pads the stream to the
 /// least length its counts allow, so the stream is exactly at SPEC.md's per-byte limits.
 fn uniform_anchors(n: usize, (f, k): (usize, usize), hidden: [usize; 3]) -> QuantizedAnchors {
-    assert!(n <= 1 << 15, "distinct cells of a 32^3 grid");
+    let (side, depth) = grid_for(n);
     let network = |m: usize, outputs: usize, bias: &dyn Fn(usize) -> i32| QuantizedMlp {
         hidden: hidden[m],
         weight_exponent: -7,
@@ -73,8 +73,8 @@ fn uniform_anchors(n: usize, (f, k): (usize, usize), hidden: [usize; 3]) -> Quan
         b2: (0..outputs).map(bias).collect(),
     };
     QuantizedAnchors {
-        grid: PositionGrid { origin: [-1.0; 3], cell: 0.0625, depth: 5 },
-        positions: (0..n as u32).map(|i| [i % 32, (i / 32) % 32, i / 1024]).collect(),
+        grid: PositionGrid { origin: [-1.0; 3], cell: 2.0 / side as f32, depth },
+        positions: cells(n),
         feature_dim: f,
         offsets_per_anchor: k,
         feature_step: 0.125,
@@ -91,6 +91,43 @@ fn uniform_anchors(n: usize, (f, k): (usize, usize), hidden: [usize; 3]) -> Quan
         ],
         context: None,
     }
+}
+
+/// The side and depth of the smallest grid of at least 32^3 cells holding `n` distinct cells.
+fn grid_for(n: usize) -> (u32, u8) {
+    let depth = (5..=24).find(|&d| 1u64 << (3 * d) >= n as u64).expect("n below 2^72");
+    (1 << depth, depth)
+}
+
+/// The first `n` cells of [`grid_for`]'s grid, x fastest.
+fn cells(n: usize) -> Vec<[u32; 3]> {
+    let (side, _) = grid_for(n);
+    (0..n as u32).map(|i| [i % side, (i / side) % side, i / (side * side)]).collect()
+}
+
+/// 1,000,000 plain Gaussians of SH degree 3, every value 0, in a 1,000,000-byte stream: the
+/// most Gaussians and values a 1 MB stream holds (N = L).
+fn most_plain_gaussians() -> Vec<u8> {
+    let n = 1_000_000;
+    let (side, depth) = grid_for(n);
+    let (steps, mut ranges) = ordinary(3);
+    (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc, ranges.sh_rest) =
+        ([-80, -80], [0, 0], [0, 0], [0, 0], [0, 0]);
+    let grid = PositionGrid { origin: [-1.0; 3], cell: 2.0 / side as f32, depth };
+    let content = gaussians(&mut Draws::new(4603), grid, cells(n), 3, steps, &ranges);
+    stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
+}
+
+/// 1,000,000 plain Gaussians of SH degree 0 on a depth-24 octree, at the corners of a 100^3
+/// lattice of cells 2^17 apart: below level 7 every node has one child, so the octree's bits
+/// are nearly free and its nodes the most a 1 MB stream holds (17 levels of 1M nodes).
+fn deepest_octree() -> Vec<u8> {
+    let positions = (0..1_000_000u32).map(|i| [i % 100, (i / 100) % 100, i / 10_000].map(|c| c << 17)).collect();
+    let (steps, mut ranges) = ordinary(0);
+    (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc) = ([-128, -128], [0, 0], [0, 0], [0, 0]);
+    let grid = PositionGrid { origin: [-1.0; 3], cell: 2.0 / (1u32 << 24) as f32, depth: 24 };
+    let content = gaussians(&mut Draws::new(4604), grid, positions, 0, steps, &ranges);
+    stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
 }
 
 fn anchor_stream(content: &QuantizedAnchors) -> Vec<u8> {
@@ -172,6 +209,44 @@ pub fn files() -> Vec<Hostile> {
              multiply-adds per anchor, 1024 per byte of stream (the limit of SPEC 12.7)."
                 .into(),
             anchor_stream(&context),
+        ),
+    ]
+}
+
+/// Streams of 1,000,000 bytes at SPEC.md section 9's per-byte limits, the heaviest a 1 MB
+/// stream can be to decode or to view: not in the suite (3 MB of files, and their decoding
+/// takes seconds), written by `cargo run --release -p pwgs-conformance --bin limit-streams DIR`
+/// for measuring a decoder's time and memory on them.
+pub fn at_one_megabyte() -> Vec<Hostile> {
+    // The most values a 1 MB stream holds: 240,600 anchors of 266 values (F = 256, K = 1), 64 per byte of 1,000,000 bytes.
+    let most_values = uniform_anchors(240_600, (256, 1), [1; 3]);
+    vec![
+        accepted(
+            "plain-1m-sh3-at-limit.pwb",
+            1,
+            Some((1920, 1080)),
+            "1,000,000 plain Gaussians of SH degree 3 (every value 0, scale e^-2.5) in a 1,000,000-byte stream: \
+             the most Gaussians (N = L) and values a 1 MB plain stream holds, at 1920x1080."
+                .into(),
+            most_plain_gaussians(),
+        ),
+        accepted(
+            "plain-1m-deepest-octree.pwb",
+            2,
+            None,
+            "1,000,000 plain Gaussians on a depth-24 octree in a 1,000,000-byte stream, each below level 7 the only \
+             child of its parent: 136M octree bits, nearly free to code."
+                .into(),
+            deepest_octree(),
+        ),
+        accepted(
+            "anchors-values-at-limit.pwb",
+            2,
+            Some((1920, 1080)),
+            "240,600 anchors of F = 256 and K = 1 in a 1,000,000-byte stream: 64 values per byte, the most SPEC 12.1 \
+             allows, at 1920x1080."
+                .into(),
+            anchor_stream(&most_values),
         ),
     ]
 }
