@@ -85,7 +85,9 @@ pub fn gaussians_to_splat_bytes(g: &Gaussians) -> Vec<u8> {
     let to_u8 = |v: f32| (v * 255.0).round().clamp(0.0, 255.0) as u8;
     let mut out = Vec::with_capacity(g.len() * SPLAT_RECORD_BYTES);
     for i in 0..g.len() {
-        for v in g.means[i].iter().chain(&g.log_scales[i].map(f32::exp)) {
+        // The format stores linear scales in f32: a log-scale above ln(f32::MAX) (a reader may
+        // return one where ln rounds down) is written as the largest finite scale.
+        for v in g.means[i].iter().chain(&g.log_scales[i].map(|l| l.exp().min(f32::MAX))) {
             out.extend_from_slice(&v.to_le_bytes());
         }
         let sh = g.sh_of(i);
@@ -114,6 +116,17 @@ mod tests {
         r.extend_from_slice(&rgba);
         r.extend_from_slice(&rot);
         r
+    }
+
+    /// The largest scale a record holds reads back to a log-scale whose `exp` rounds to
+    /// infinity; written again, it is the largest finite scale, and reads again (a fuzz finding).
+    #[test]
+    fn the_largest_scale_writes_and_reads_again() {
+        let file = record([0.0; 3], [f32::MAX, 1.0, 1.0], [128, 128, 128, 255], [255, 128, 128, 128]);
+        let g = gaussians_from_splat_bytes(&file).unwrap();
+        let again = gaussians_from_splat_bytes(&gaussians_to_splat_bytes(&g)).unwrap();
+        assert_eq!(again.len(), 1);
+        assert!(again.log_scales[0].iter().all(|v| v.is_finite()));
     }
 
     /// Tolerances: positions are stored as f32 (exact) and scales as `exp` in f32 (a relative
