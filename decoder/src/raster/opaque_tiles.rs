@@ -81,7 +81,10 @@ pub fn bin_window_until_opaque(splats: &[Splat], window: Window, stops: Stops) -
         .map(|ty| (0..tiles_x).map(|tx| closed_at[(ty * tiles_x + tx) as usize]).max().unwrap_or(0))
         .collect();
     let keep = Keep { row: |ty: u32, i| i as u32 <= row_closed_at[ty as usize], tile: |t, i| i as u32 <= closed_at[t] };
-    bin_window_with(splats.len(), |i| splats[i].bbox, window, keep)
+    // Nothing after the last tile closed is listed: those splats are not even looked at (a
+    // million splats covering a view close it after a few dozen).
+    let listed = row_closed_at.iter().max().map_or(0, |&c| (c as usize).saturating_add(1).min(splats.len()));
+    bin_window_with(listed, |i| splats[i].bbox, window, keep)
 }
 
 /// Pixel rectangle of tile (tx, ty) of `window`: x in [x0, x1), y in [y0, y1).

@@ -220,7 +220,18 @@ pub fn files() -> Vec<Hostile> {
 pub fn at_one_megabyte() -> Vec<Hostile> {
     // The most values a 1 MB stream holds: 240,600 anchors of 266 values (F = 256, K = 1), 64 per byte of 1,000,000 bytes.
     let most_values = uniform_anchors(240_600, (256, 1), [1; 3]);
+    // At both limits: 1,000,000 anchors of K = 1 (M = L) and F = 54 (64 values per byte).
+    let most_anchors = uniform_anchors(1_000_000, (54, 1), [1; 3]);
     vec![
+        accepted(
+            "anchors-values-and-neural-gaussians-at-limit.pwb",
+            2,
+            Some((1920, 1080)),
+            "1,000,000 anchors of F = 54 and K = 1 in a 1,000,000-byte stream: 64 values and one neural Gaussian per \
+             byte, both limits of SPEC 12.1 and 12.3, at 1920x1080."
+                .into(),
+            anchor_stream(&most_anchors),
+        ),
         accepted(
             "plain-1m-sh3-at-limit.pwb",
             1,
