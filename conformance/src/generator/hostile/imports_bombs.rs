@@ -352,8 +352,8 @@ fn zip(payloads: &[ZipPayload], directory: &[(String, usize)]) -> Vec<u8> {
     out
 }
 
-/// A zip of `files`, each stored and listed once.
-fn stored_zip(files: &[(String, Vec<u8>)]) -> Vec<u8> {
+/// A zip of `files`, each stored and listed once (as PlayCanvas's writer stores a SOG).
+pub(super) fn stored_zip(files: &[(String, Vec<u8>)]) -> Vec<u8> {
     let payloads: Vec<ZipPayload> = files
         .iter()
         .map(|(name, data)| ZipPayload {

@@ -11,6 +11,7 @@
 use pwgs_decoder::gaussians::Gaussians;
 use serde_json::json;
 
+use super::imports_bombs::stored_zip;
 use super::{Hostile, HostileEntry, Outcome, Tool};
 
 /// What the encoder says of positions that no stream's grid can hold.
@@ -221,44 +222,5 @@ fn sog(mins: [f64; 3], maxs: [f64; 3]) -> Vec<u8> {
         ("scales.webp", image(&|i| [(i * 17) as u8, 255 - (i * 17) as u8, (i * 5) as u8, 255])),
         ("sh0.webp", image(&|i| [(i * 16) as u8, 128, 64, if i % 2 == 0 { 255 } else { 128 }])),
     ];
-    stored_zip(&files)
-}
-
-/// A zip archive (APPNOTE 4.3) of `files`, stored uncompressed as PlayCanvas's writer stores a
-/// SOG: per file a local header and its bytes, then the central directory and its end record.
-fn stored_zip(files: &[(&str, Vec<u8>)]) -> Vec<u8> {
-    /// Version 2.0 needed, no flags, stored, 1980-01-01 00:00, the CRC-32 and both sizes, the
-    /// name's length and no extra field.
-    fn fields(out: &mut Vec<u8>, name: &str, data: &[u8]) {
-        let mut crc = flate2::Crc::new();
-        crc.update(data);
-        [20u16, 0, 0, 0, 0x21].iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
-        [crc.sum(), data.len() as u32, data.len() as u32].iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
-        [name.len() as u16, 0].iter().for_each(|v| out.extend_from_slice(&v.to_le_bytes()));
-    }
-    let mut out = Vec::new();
-    let mut offsets = Vec::new();
-    for (name, data) in files {
-        offsets.push(out.len() as u32);
-        out.extend_from_slice(&0x0403_4b50u32.to_le_bytes());
-        fields(&mut out, name, data);
-        out.extend_from_slice(name.as_bytes());
-        out.extend_from_slice(data);
-    }
-    let directory = out.len();
-    for ((name, data), offset) in files.iter().zip(offsets) {
-        out.extend_from_slice(&0x0201_4b50u32.to_le_bytes());
-        out.extend_from_slice(&20u16.to_le_bytes()); // made by version 2.0
-        fields(&mut out, name, data);
-        out.extend_from_slice(&[0; 10]); // no comment, disk 0, no attributes
-        out.extend_from_slice(&offset.to_le_bytes());
-        out.extend_from_slice(name.as_bytes());
-    }
-    let (entries, directory_bytes) = ((files.len() as u16).to_le_bytes(), (out.len() - directory) as u32);
-    out.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
-    out.extend_from_slice(&[0, 0, 0, 0, entries[0], entries[1], entries[0], entries[1]]);
-    out.extend_from_slice(&directory_bytes.to_le_bytes());
-    out.extend_from_slice(&(directory as u32).to_le_bytes());
-    out.extend_from_slice(&[0, 0]);
-    out
+    stored_zip(&files.map(|(name, data)| (name.to_string(), data)))
 }

@@ -9,7 +9,6 @@ use pwgs_decoder::camera_json::camera_to_json;
 use pwgs_decoder::context_grid::ContextGridShape;
 use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
 use pwgs_decoder::stream::anchor_context::{QuantizedContext, predicted_values};
-use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::plain::PositionGrid;
 use pwgs_decoder::stream::{self, Content};
 
@@ -131,15 +130,7 @@ fn deepest_octree() -> Vec<u8> {
 }
 
 fn anchor_stream(content: &QuantizedAnchors) -> Vec<u8> {
-    let header = Header {
-        base: BaseKind::Anchors,
-        gaussian_count: content.len() as u32,
-        sh_degree: 0,
-        center: [0.0; 3],
-        scale: 1.0,
-        background: [0.1, 0.1, 0.1],
-    };
-    let bytes = stream::encode(&header, content, None).expect("the anchors fit the octree");
+    let bytes = super::super::anchor_vectors::encode(content);
     let decoded = stream::decode(&bytes).expect("the writer's stream decodes");
     assert!(matches!(decoded.content, Content::Anchors(_)));
     bytes
