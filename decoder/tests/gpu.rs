@@ -121,6 +121,27 @@ fn a_view_blended_in_many_windows_is_the_same_view() {
     }
 }
 
+/// Large, nearly opaque splats: the GPU's tile lists end where a tile is surely opaque (the
+/// bound taken of the splats as the device projected them), and its view agrees with the CPU's
+/// render from the full lists.
+#[test]
+fn lists_ending_at_opaque_tiles_render_alike_on_the_gpu() {
+    let Some(gpu) = renderer() else { return };
+    let mut rng = SplitMix64(23);
+    let mut gaussians = random_gaussians(&mut rng, 600, 1, [-1.5, 0.5]);
+    for (i, o) in gaussians.opacity_logits.iter_mut().enumerate() {
+        *o = if i % 5 == 0 { -4.0 } else { 3.0 };
+    }
+    let camera = axis_camera(120, 80, 110.0, 108.0, 60.0, 40.0);
+    let scene = wrapped_random_scene(&mut rng, gaussians.clone(), [0.2, 0.3, 0.4]);
+    let options = scene.render_options();
+    let prepared = gpu.prepare(&scene).unwrap();
+    let (shown, _) = gpu.render(&scene, &prepared, &camera, &options, Output::Base).unwrap();
+    let full_lists = pwgs_decoder::raster::rasterize(&gaussians, &camera, &options);
+    let (max, mean) = differences(&full_lists.color, &shown.image);
+    assert!(max < 1e-4 && mean < 1e-6, "difference max {max}, mean {mean}");
+}
+
 /// Hard cases for the GPU's f32 projection against the CPU's f64: needles (axis ratios up to
 /// e^14, 1.2 million), Gaussians larger than the scene (up to e^40, which the GPU projects in
 /// shifted units, and e^10 far away, so that they show as blobs) and tiny ones (e^-30), one just past the near plane, and ones every renderer

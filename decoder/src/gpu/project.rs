@@ -9,7 +9,7 @@ use crate::camera::Camera;
 use crate::gaussians::{Gaussians, sh_coeff_count};
 use crate::raster::project::ProjectionSettings;
 
-use super::buffers::{output, read_words, storage, uniform};
+use super::buffers::{output, read_f32, read_words, storage, uniform};
 use super::pass::{compute_pipeline, dispatch};
 use super::{GpuError, GpuRenderer};
 
@@ -100,6 +100,12 @@ impl Projected {
             .collect();
         keys.par_sort_unstable();
         Ok((keys.into_iter().map(|k| k as u32).collect(), boxes))
+    }
+
+    /// Every Gaussian's splat as the blend pass reads it: [`SPLAT_STRIDE`] values each (mean
+    /// x, y, Cholesky l11, l21, l22, opacity, r, g, b, unused).
+    pub fn splat_values(&self, gpu: &GpuRenderer) -> Result<Vec<f32>, GpuError> {
+        read_f32(gpu, &self.splats, SPLAT_STRIDE * self.count)
     }
 }
 

@@ -34,9 +34,36 @@ pub struct Stops {
     pub transmittance_min: f64,
 }
 
+/// What the bound needs of a splat: its pixel box, centre, the Cholesky factor of its conic
+/// (as [`Splat`] holds them) and its opacity.
+#[derive(Debug, Clone, Copy)]
+pub struct Footprint {
+    pub bbox: [u32; 4],
+    pub mean: [f32; 2],
+    pub cholesky: [f32; 3],
+    pub opacity: f32,
+}
+
+impl From<&Splat> for Footprint {
+    fn from(s: &Splat) -> Self {
+        Self { bbox: s.bbox, mean: s.mean, cholesky: s.cholesky, opacity: s.opacity }
+    }
+}
+
 /// Bins `splats` (front to back) into `window`'s tiles as [`super::tiles::bin_window`] does,
 /// each tile's list ending at the splat after which the tile is surely opaque.
 pub fn bin_window_until_opaque(splats: &[Splat], window: Window, stops: Stops) -> TileBins {
+    bin_until_opaque(splats.len(), |i| Footprint::from(&splats[i]), window, stops)
+}
+
+/// [`bin_window_until_opaque`] for `count` splats (front to back) given by `footprint` (the GPU
+/// renderer's, read back from the device): entries are positions in that order.
+pub fn bin_until_opaque(
+    count: usize,
+    footprint: impl Fn(usize) -> Footprint,
+    window: Window,
+    stops: Stops,
+) -> TileBins {
     let tiles_x = window.width.div_ceil(TILE_SIZE);
     let tiles_y = window.height.div_ceil(TILE_SIZE);
     let tile_count = (tiles_x * tiles_y) as usize;
@@ -47,10 +74,11 @@ pub fn bin_window_until_opaque(splats: &[Splat], window: Window, stops: Stops) -
     let mut open = tile_count;
     let (x_end, y_end) = (window.x0 + window.width, window.y0 + window.height);
     let limit = stops.transmittance_min * TRANSMITTANCE_MARGIN;
-    for (i, s) in splats.iter().enumerate() {
+    for i in 0..count {
         if open == 0 {
             break;
         }
+        let s = footprint(i);
         let [x0, x1, y0, y1] = s.bbox;
         let [x0, x1, y0, y1] = [x0.max(window.x0), x1.min(x_end), y0.max(window.y0), y1.min(y_end)];
         if x0 >= x1 || y0 >= y1 {
@@ -66,7 +94,7 @@ pub fn bin_window_until_opaque(splats: &[Splat], window: Window, stops: Stops) -
                     continue;
                 }
                 let rect = tile_rect(window, tx, ty);
-                let Some(alpha) = smallest_alpha(s, rect, stops) else { continue };
+                let Some(alpha) = smallest_alpha(&s, rect, stops) else { continue };
                 bound[t] *= 1.0 - alpha;
                 if bound[t] <= limit {
                     closed_at[t] = i as u32;
@@ -83,8 +111,8 @@ pub fn bin_window_until_opaque(splats: &[Splat], window: Window, stops: Stops) -
     let keep = Keep { row: |ty: u32, i| i as u32 <= row_closed_at[ty as usize], tile: |t, i| i as u32 <= closed_at[t] };
     // Nothing after the last tile closed is listed: those splats are not even looked at (a
     // million splats covering a view close it after a few dozen).
-    let listed = row_closed_at.iter().max().map_or(0, |&c| (c as usize).saturating_add(1).min(splats.len()));
-    bin_window_with(listed, |i| splats[i].bbox, window, keep)
+    let listed = row_closed_at.iter().max().map_or(0, |&c| (c as usize).saturating_add(1).min(count));
+    bin_window_with(listed, |i| footprint(i).bbox, window, keep)
 }
 
 /// Pixel rectangle of tile (tx, ty) of `window`: x in [x0, x1), y in [y0, y1).
@@ -96,7 +124,7 @@ fn tile_rect(window: Window, tx: u32, ty: u32) -> [u32; 4] {
 /// A lower bound, with margin, of the alpha `s` blends into every pixel of the tile `rect`,
 /// clamped as the blend clamps it; `None` unless the splat covers the whole tile with an alpha
 /// surely above the cutoff.
-fn smallest_alpha(s: &Splat, [x0, x1, y0, y1]: [u32; 4], stops: Stops) -> Option<f64> {
+fn smallest_alpha(s: &Footprint, [x0, x1, y0, y1]: [u32; 4], stops: Stops) -> Option<f64> {
     let [bx0, bx1, by0, by1] = s.bbox;
     if bx0 > x0 || bx1 < x1 || by0 > y0 || by1 < y1 {
         return None;
