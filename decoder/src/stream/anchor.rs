@@ -49,6 +49,21 @@ pub const MULTIPLY_ADDS_PER_BYTE: u64 = 1024;
 /// view's Gaussians, and the memory to render them, are bounded by the stream's size.
 pub const NEURAL_GAUSSIANS_PER_BYTE: u64 = 1;
 
+/// The multiply-add bound of `tag`'s networks (SPEC.md 12.1, 12.7): `count` anchors of `work`
+/// each in a stream of `stream_len` bytes, else the error naming the section.
+pub(super) fn check_multiply_adds(tag: Tag, count: usize, work: u64, stream_len: usize) -> Result<(), DecodeError> {
+    match fits_per_byte(count, work, MULTIPLY_ADDS_PER_BYTE, stream_len) {
+        true => Ok(()),
+        false => Err(DecodeError::invalid(
+            tag,
+            format!(
+                "{count} anchors of {work} multiply-adds each exceed the stream's length of {stream_len} bytes (at \
+                 most {MULTIPLY_ADDS_PER_BYTE} multiply-adds per byte)"
+            ),
+        )),
+    }
+}
+
 /// Multiply-adds of the three view networks for one anchor (SPEC.md section 12.1): network m
 /// has `F + 4` inputs, `H_m` hidden units and `O_m` = K, 3K, 7K outputs.
 pub fn view_multiply_adds(feature_dim: usize, offsets: usize, hidden: [usize; 3]) -> u64 {
@@ -264,15 +279,7 @@ impl QuantizedAnchors {
             ));
         }
         let work = view_multiply_adds(feature_dim, k, mlps.each_ref().map(|m| m.hidden));
-        if !fits_per_byte(count, work, MULTIPLY_ADDS_PER_BYTE, stream_len) {
-            return Err(DecodeError::invalid(
-                NETWORKS,
-                format!(
-                    "{count} anchors of {work} multiply-adds each exceed the stream's length of {stream_len} bytes \
-                     (at most {MULTIPLY_ADDS_PER_BYTE} multiply-adds per byte)"
-                ),
-            ));
-        }
+        check_multiply_adds(NETWORKS, count, work, stream_len)?;
         let (grid, positions) = read_positions(ANCHOR_POSITIONS, positions, count)?;
         let read_masks = || -> Result<Vec<bool>, DecodeError> {
             let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), Rows::plain(count))?;

@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
 
 use super::DecodeError;
-use super::anchor::{MULTIPLY_ADDS_PER_BYTE, QuantizedAnchors, QuantizedMlp, bounded, exponent, fits_per_byte, within};
+use super::anchor::{QuantizedAnchors, QuantizedMlp, bounded, check_multiply_adds, exponent, within};
 use super::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::{GaussianModel, MAX_MEAN, MEAN_DENOMINATOR, SCALE_OFFSET};
 use crate::anchor::Mlp;
@@ -174,7 +174,7 @@ impl QuantizedContext {
 
     /// Reads `ACTX` for `count` anchors of `values` predicted values on an octree of `depth`,
     /// in a stream of `stream_len` bytes (the grid may hold at most 64 entries per byte of it,
-    /// and the network cost at most [`MULTIPLY_ADDS_PER_BYTE`] per byte over the anchors).
+    /// and the network cost at most [`super::anchor::MULTIPLY_ADDS_PER_BYTE`] per byte over the anchors).
     pub fn read(
         payload: &[u8],
         depth: u8,
@@ -203,15 +203,7 @@ impl QuantizedContext {
         }
         let hidden = bounded(&mut r, "hidden width", MAX_CONTEXT_HIDDEN)?;
         let work = context_multiply_adds(&shape, hidden, values);
-        if !fits_per_byte(count, work, MULTIPLY_ADDS_PER_BYTE, stream_len) {
-            return Err(DecodeError::invalid(
-                CONTEXT,
-                format!(
-                    "{count} anchors of {work} multiply-adds each exceed the stream's length of {stream_len} bytes \
-                     (at most {MULTIPLY_ADDS_PER_BYTE} multiply-adds per byte)"
-                ),
-            ));
-        }
+        check_multiply_adds(CONTEXT, count, work, stream_len)?;
         let (weight_exponent, bias_exponent) =
             (exponent(&mut r, "weight step exponent")?, exponent(&mut r, "bias step exponent")?);
         let inputs = shape.context_len();
