@@ -4,7 +4,6 @@
 
 mod grid;
 
-use std::borrow::Cow;
 use std::cmp::Ordering;
 
 use pwgs_decoder::gaussians::{Gaussians, sh_band, sh_coeff_count};
@@ -293,7 +292,6 @@ fn write_selected(
         return Err(CompressError::TooMany { count: keep.len(), limit: stream::header::MAX_GAUSSIANS });
     }
     let (kept, content) = on_grid(g, keep, coding)?;
-    let kept = kept.into_owned();
     let header = Header {
         base: BaseKind::Plain3dgs,
         gaussian_count: content.len() as u32,
@@ -325,11 +323,11 @@ fn write_selected(
 /// whose outliers stretch the grid), no stream can hold them all: each such cell keeps its 255
 /// most important ([`more_important`]) and the others are dropped, which the caller reports
 /// ([`Compressed::crowded`]). At 255 Gaussians on one spot the ones behind hardly show.
-fn on_grid<'a>(
+fn on_grid(
     g: &Gaussians,
-    keep: &'a [usize],
+    keep: &[usize],
     (coding, reference): (Coding, f32),
-) -> Result<(Cow<'a, [usize]>, PlainGaussians), CompressError> {
+) -> Result<(Vec<usize>, PlainGaussians), CompressError> {
     let s = coding.settings;
     // Each level finer makes the grid a level deeper until it is the finest: at most 24 turns.
     let mut finer = 0;
@@ -340,7 +338,7 @@ fn on_grid<'a>(
         let cells: Vec<[u32; 3]> = content.positions.iter().map(|q| q.map(|c| c >> refine)).collect();
         let overfull = grid::overfull_cells(&cells);
         if overfull.is_empty() {
-            return Ok((Cow::Borrowed(keep), content));
+            return Ok((keep.to_vec(), content));
         }
         if !choice.finest {
             finer += 1;
@@ -355,7 +353,7 @@ fn on_grid<'a>(
         // On the same grid: the cells of `POSN` are those above, or finer ones where fewer
         // classes refine less, so none holds more than 255 now.
         let content = quantize(g, &kept, (coding, reference), &choice.grid);
-        return Ok((Cow::Owned(kept), content));
+        return Ok((kept, content));
     }
 }
 
