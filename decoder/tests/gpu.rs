@@ -121,12 +121,13 @@ fn a_view_blended_in_many_windows_is_the_same_view() {
     }
 }
 
-/// Large, nearly opaque splats: the GPU's tile lists end where a tile is surely opaque (the
-/// bound taken of the splats as the device projected them), and its view agrees with the CPU's
-/// render from the full lists.
+/// Large, nearly opaque splats whose lists exceed the bin budget (a small one here): the GPU's
+/// tile lists end where a tile is surely opaque (the bound taken of the splats as the device
+/// projected them), and its view agrees with the CPU's render from the full lists.
 #[test]
 fn lists_ending_at_opaque_tiles_render_alike_on_the_gpu() {
-    let Some(gpu) = renderer() else { return };
+    let Some(mut gpu) = renderer() else { return };
+    gpu.set_bin_budget(BinBudget { entries: 3000, pixels: 1 << 20 });
     let mut rng = SplitMix64(23);
     let mut gaussians = random_gaussians(&mut rng, 600, 1, [-1.5, 0.5]);
     for (i, o) in gaussians.opacity_logits.iter_mut().enumerate() {

@@ -213,29 +213,38 @@ impl GpuRenderer {
         times.projection = start.elapsed();
         let start = Instant::now();
         let (order, boxes) = projected.front_to_back(self)?;
-        let values = projected.splat_values(self)?;
         let bbox = |k: usize| boxes[order[k] as usize];
-        // What the opaque-tile bound needs, as the blend pass reads it (so that its alphas are
-        // the ones the bound is taken of).
-        let footprint = |k: usize| {
-            let s = order[k] as usize * project::SPLAT_STRIDE;
-            Footprint {
-                bbox: bbox(k),
-                mean: [values[s], values[s + 1]],
-                cholesky: [values[s + 2], values[s + 3], values[s + 4]],
-                opacity: values[s + 5],
-            }
-        };
         let windows = tiles::bounded_windows(order.len(), bbox, Window::full(camera), self.bin_budget);
+        // Lists too long for one window are ended where their tile is surely opaque, with the
+        // bound taken of the splats as the blend pass reads them (read back: 48 bytes per
+        // Gaussian, a cost an ordinary view, whose lists fit one window, does not pay).
+        let values = match windows.len() {
+            1 => None,
+            _ => Some(projected.splat_values(self)?),
+        };
         times.sort = start.elapsed();
 
         // Window by window, as the CPU renderer does: the tile lists of a view stay bounded
-        // whatever its splats, and each ends where its tile is surely opaque.
+        // whatever its splats.
         let (width, height) = (camera.width, camera.height);
         let base = self.blend.image(self, width, height)?;
         for window in windows {
             let start = Instant::now();
-            let mut bins = bin_until_opaque(order.len(), footprint, window, Stops::of(options));
+            let mut bins = match &values {
+                None => tiles::bin_window(order.len(), bbox, window),
+                Some(values) => {
+                    let footprint = |k: usize| {
+                        let s = order[k] as usize * project::SPLAT_STRIDE;
+                        Footprint {
+                            bbox: bbox(k),
+                            mean: [values[s], values[s + 1]],
+                            cholesky: [values[s + 2], values[s + 3], values[s + 4]],
+                            opacity: values[s + 5],
+                        }
+                    };
+                    bin_until_opaque(order.len(), footprint, window, Stops::of(options))
+                }
+            };
             // The blend pass reads splats by Gaussian index.
             bins.entries.iter_mut().for_each(|e| *e = order[*e as usize]);
             times.sort += start.elapsed();
