@@ -5,8 +5,9 @@ mod common;
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_decoder::gaussians::{Gaussians, SH_C0, rgb_to_sh_dc};
 use pwgs_decoder::raster::blend::{ColourMap, splat_weights};
-use pwgs_decoder::raster::opaque_tiles::{Stops, bin_window_until_opaque};
-use pwgs_decoder::raster::tiles::{BinBudget, ListOrder, bounded_windows};
+use pwgs_decoder::raster::opaque_tiles::{Stops, splat_list_ends};
+use pwgs_decoder::raster::tile_lists::{BinBudget, ListEnds};
+use pwgs_decoder::raster::tiles::ListOrder;
 use pwgs_decoder::raster::{
     BlendPath, RenderOptions, Window, rasterize, rasterize_window, render, render_within, visible_splats,
 };
@@ -61,8 +62,9 @@ fn a_window_is_exactly_that_part_of_the_whole_image() {
 }
 
 /// One opaque-ish Gaussian at `mean` with isotropic scale.
-/// Small budgets split a view into many windows, by rows and within rows: the image is the
-/// one-binning image bit for bit, and no window's lists exceed the budget unless one tile does.
+/// Small budgets split a view into many windows, by rows and within rows: each window's lists
+/// are the whole view's, the image is the one-binning image bit for bit, and no window's lists
+/// exceed the budget unless one tile does.
 #[test]
 fn a_render_within_a_budget_is_the_whole_render() {
     let mut rng = Rng(23);
@@ -80,12 +82,18 @@ fn a_render_within_a_budget_is_the_whole_render() {
         BinBudget { entries: largest_tile, pixels: 256 },
         BinBudget { entries: 1, pixels: 1 },
     ] {
-        let windows = bounded_windows(splats.len(), |i| splats[i].bbox, Window::full(&cam), budget);
+        let ends = ListEnds::full(splats.len(), |i| splats[i].bbox, Window::full(&cam));
+        let windows = ends.windows(budget);
         let covered: u64 = windows.iter().map(|w| u64::from(w.width) * u64::from(w.height)).sum();
         assert_eq!(covered, 150 * 90, "{budget:?}: the windows tile the view");
         for w in &windows {
-            let bins = pwgs_decoder::raster::tiles::bin_window(splats.len(), |i| splats[i].bbox, *w);
+            let bins = ends.bin(splats.len(), |i| splats[i].bbox, *w);
             let tiles = u64::from(bins.tiles_x * bins.tiles_y);
+            for t in 0..tiles as usize {
+                let [x0, _, y0, _] = bins.tile_rect(t);
+                let whole_tile = (y0 / 16 * whole.bins.tiles_x + x0 / 16) as usize;
+                assert_eq!(bins.tile(t), whole.bins.tile(whole_tile), "{budget:?}: window {w:?}, tile {t}");
+            }
             assert!(
                 bins.entries.len() as u64 <= budget.entries.max(largest_tile)
                     && u64::from(w.width * w.height) <= budget.pixels.max(256)
@@ -115,7 +123,8 @@ fn lists_that_end_at_opaque_tiles_change_no_pixel() {
         let options = RenderOptions { background: [0.7, 0.2, 0.4], blend, ..Default::default() };
         let whole = rasterize(&g, &cam, &options);
         let splats = visible_splats(&g, &cam, &options.projection);
-        let shortened = bin_window_until_opaque(&splats, Window::full(&cam), Stops::of(&options));
+        let full = Window::full(&cam);
+        let shortened = splat_list_ends(&splats, full, Stops::of(&options)).bin(splats.len(), |i| splats[i].bbox, full);
         assert!(
             shortened.entries.len() * 4 < whole.bins.entries.len(),
             "{} of {} entries kept",

@@ -24,8 +24,8 @@ mod synthesis;
 use std::time::{Duration, Instant};
 
 use crate::camera::Camera;
-use crate::raster::opaque_tiles::{Footprint, Stops, bin_until_opaque};
-use crate::raster::tiles::{self, BinBudget};
+use crate::raster::opaque_tiles::{Footprint, Stops, list_ends};
+use crate::raster::tile_lists::{BinBudget, ListEnds};
 use crate::raster::{RenderOptions, Window};
 use crate::rgb_image::RgbImage;
 use crate::scene::{Base, Scene, Shown};
@@ -214,13 +214,29 @@ impl GpuRenderer {
         let start = Instant::now();
         let (order, boxes) = projected.front_to_back(self)?;
         let bbox = |k: usize| boxes[order[k] as usize];
-        let windows = tiles::bounded_windows(order.len(), bbox, Window::full(camera), self.bin_budget);
+        let view = Window::full(camera);
+        let full = ListEnds::full(order.len(), bbox, view);
+        let mut windows = full.windows(self.bin_budget);
         // Lists too long for one window are ended where their tile is surely opaque, with the
         // bound taken of the splats as the blend pass reads them (read back: 48 bytes per
         // Gaussian, a cost an ordinary view, whose lists fit one window, does not pay).
-        let values = match windows.len() {
-            1 => None,
-            _ => Some(projected.splat_values(self)?),
+        let ends = match windows.len() {
+            1 => full,
+            _ => {
+                let values = projected.splat_values(self)?;
+                let footprint = |k: usize| {
+                    let s = order[k] as usize * project::SPLAT_STRIDE;
+                    Footprint {
+                        bbox: bbox(k),
+                        mean: [values[s], values[s + 1]],
+                        cholesky: [values[s + 2], values[s + 3], values[s + 4]],
+                        opacity: values[s + 5],
+                    }
+                };
+                let ends = list_ends(order.len(), footprint, view, Stops::of(options));
+                windows = ends.windows(self.bin_budget);
+                ends
+            }
         };
         times.sort = start.elapsed();
 
@@ -230,21 +246,7 @@ impl GpuRenderer {
         let base = self.blend.image(self, width, height)?;
         for window in windows {
             let start = Instant::now();
-            let mut bins = match &values {
-                None => tiles::bin_window(order.len(), bbox, window),
-                Some(values) => {
-                    let footprint = |k: usize| {
-                        let s = order[k] as usize * project::SPLAT_STRIDE;
-                        Footprint {
-                            bbox: bbox(k),
-                            mean: [values[s], values[s + 1]],
-                            cholesky: [values[s + 2], values[s + 3], values[s + 4]],
-                            opacity: values[s + 5],
-                        }
-                    };
-                    bin_until_opaque(order.len(), footprint, window, Stops::of(options))
-                }
-            };
+            let mut bins = ends.bin(order.len(), bbox, window);
             // The blend pass reads splats by Gaussian index.
             bins.entries.iter_mut().for_each(|e| *e = order[*e as usize]);
             times.sort += start.elapsed();

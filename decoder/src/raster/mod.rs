@@ -16,6 +16,7 @@ pub mod opaque_tiles;
 pub mod project;
 pub mod project_f32;
 pub mod sh;
+pub mod tile_lists;
 pub mod tiles;
 
 use rayon::prelude::*;
@@ -25,7 +26,8 @@ use crate::gaussians::Gaussians;
 use crate::rgb_image::RgbImage;
 use opaque_tiles::Stops;
 use project::{ProjectionSettings, Splat};
-use tiles::{BinBudget, TileBins};
+use tile_lists::{BinBudget, ListEnds};
+use tiles::TileBins;
 
 /// Tile edge in pixels.
 pub const TILE_SIZE: u32 = 16;
@@ -211,10 +213,11 @@ fn clip_to_window(splats: Vec<Splat>, window: Window) -> Vec<Splat> {
 }
 
 /// Renders a view's colors only, in bounded memory: the view is blended window by window
-/// ([`tiles::bounded_windows`] with [`BinBudget::DEFAULT`]), so that whatever the splats, a
-/// render takes besides its image (12 bytes per pixel) and its splats (80 bytes each) about
-/// 100 MiB of tile lists and per-pixel arrays. The pixels are those of [`rasterize`]: every
-/// window's pixels are blended from the image's coordinates in the same order.
+/// ([`ListEnds::windows`] within [`BinBudget::DEFAULT`]), each tile's list ending where the tile
+/// is surely opaque ([`opaque_tiles`]), so that whatever the splats, a render takes besides its
+/// image (12 bytes per pixel) and its splats (80 bytes each) about 100 MiB of tile lists and
+/// per-pixel arrays. The pixels are those of [`rasterize`]: every window's pixels are blended
+/// from the image's coordinates in the same order.
 pub fn render(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions) -> RgbImage {
     render_within(gaussians, camera, options, BinBudget::DEFAULT)
 }
@@ -223,20 +226,21 @@ pub fn render(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions) -
 pub fn render_within(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions, budget: BinBudget) -> RgbImage {
     let splats = visible_splats(gaussians, camera, &options.projection);
     let full = Window::full(camera);
-    let windows = tiles::bounded_windows(splats.len(), |i| splats[i].bbox, full, budget);
+    let bbox = |i: usize| splats[i].bbox;
     // The smooth cutoff (gradient checks) blends below alpha_min: no tile is surely opaque.
-    let bin = |window| match options.cutoff {
-        Cutoff::Hard => opaque_tiles::bin_window_until_opaque(&splats, window, Stops::of(options)),
-        Cutoff::Smooth => tiles::bin_window(splats.len(), |i| splats[i].bbox, window),
+    let ends = match options.cutoff {
+        Cutoff::Hard => opaque_tiles::splat_list_ends(&splats, full, Stops::of(options)),
+        Cutoff::Smooth => ListEnds::full(splats.len(), bbox, full),
     };
+    let windows = ends.windows(budget);
     let mut image = RgbImage { width: camera.width, height: camera.height, data: Vec::new() };
     if let [window] = windows[..] {
-        image.data = blend_bins(&splats, &bin(window), options).color.data;
+        image.data = blend_bins(&splats, &ends.bin(splats.len(), bbox, window), options).color.data;
         return image;
     }
     image.data = vec![0.0; full.width as usize * full.height as usize * 3];
     for window in windows {
-        let bins = bin(window);
+        let bins = ends.bin(splats.len(), bbox, window);
         let part = blend_bins(&splats, &bins, options).color;
         let row = window.width as usize * 3;
         for (y, source) in part.data.chunks_exact(row).enumerate() {

@@ -16,7 +16,7 @@
 use super::TILE_SIZE;
 use super::Window;
 use super::project::Splat;
-use super::tiles::{Keep, TileBins, bin_window_with};
+use super::tile_lists::ListEnds;
 use crate::portable_math::exp_f64;
 
 /// Relative margin taken off each splat's smallest alpha (the blends' falloffs are within
@@ -50,69 +50,30 @@ impl From<&Splat> for Footprint {
     }
 }
 
-/// Bins `splats` (front to back) into `window`'s tiles as [`super::tiles::bin_window`] does,
-/// each tile's list ending at the splat after which the tile is surely opaque.
-pub fn bin_window_until_opaque(splats: &[Splat], window: Window, stops: Stops) -> TileBins {
-    bin_until_opaque(splats.len(), |i| Footprint::from(&splats[i]), window, stops)
+/// Where each tile's list of `splats` (front to back) over `view` ends: at the splat after
+/// which the tile is surely opaque.
+pub fn splat_list_ends(splats: &[Splat], view: Window, stops: Stops) -> ListEnds {
+    list_ends(splats.len(), |i| Footprint::from(&splats[i]), view, stops)
 }
 
-/// [`bin_window_until_opaque`] for `count` splats (front to back) given by `footprint` (the GPU
-/// renderer's, read back from the device): entries are positions in that order.
-pub fn bin_until_opaque(
-    count: usize,
-    footprint: impl Fn(usize) -> Footprint,
-    window: Window,
-    stops: Stops,
-) -> TileBins {
-    let tiles_x = window.width.div_ceil(TILE_SIZE);
-    let tiles_y = window.height.div_ceil(TILE_SIZE);
-    let tile_count = (tiles_x * tiles_y) as usize;
-    // Per tile, the transmittance bound and the position of the splat that closed it.
-    let mut bound = vec![1.0f64; tile_count];
-    let mut closed_at = vec![u32::MAX; tile_count];
-    let mut open_in_row = vec![tiles_x; tiles_y as usize];
-    let mut open = tile_count;
-    let (x_end, y_end) = (window.x0 + window.width, window.y0 + window.height);
+/// [`splat_list_ends`] for `count` splats (front to back) given by `footprint` (the GPU
+/// renderer's, read back from the device).
+pub fn list_ends(count: usize, footprint: impl Fn(usize) -> Footprint, view: Window, stops: Stops) -> ListEnds {
+    let tiles = view.width.div_ceil(TILE_SIZE) * view.height.div_ceil(TILE_SIZE);
+    // Per tile, the bound of its pixels' transmittance after the splats so far.
+    let mut bound = vec![1.0f64; tiles as usize];
     let limit = stops.transmittance_min * TRANSMITTANCE_MARGIN;
-    for i in 0..count {
-        if open == 0 {
-            break;
-        }
-        let s = footprint(i);
-        let [x0, x1, y0, y1] = s.bbox;
-        let [x0, x1, y0, y1] = [x0.max(window.x0), x1.min(x_end), y0.max(window.y0), y1.min(y_end)];
-        if x0 >= x1 || y0 >= y1 {
-            continue;
-        }
-        for ty in (y0 - window.y0) / TILE_SIZE..=(y1 - 1 - window.y0) / TILE_SIZE {
-            if open_in_row[ty as usize] == 0 {
-                continue;
-            }
-            for tx in (x0 - window.x0) / TILE_SIZE..=(x1 - 1 - window.x0) / TILE_SIZE {
-                let t = (ty * tiles_x + tx) as usize;
-                if closed_at[t] != u32::MAX {
-                    continue;
-                }
-                let rect = tile_rect(window, tx, ty);
-                let Some(alpha) = smallest_alpha(&s, rect, stops) else { continue };
-                bound[t] *= 1.0 - alpha;
-                if bound[t] <= limit {
-                    closed_at[t] = i as u32;
-                    open_in_row[ty as usize] -= 1;
-                    open -= 1;
-                }
-            }
-        }
-    }
-    // A row lists nothing after the last of its tiles has closed.
-    let row_closed_at: Vec<u32> = (0..tiles_y)
-        .map(|ty| (0..tiles_x).map(|tx| closed_at[(ty * tiles_x + tx) as usize]).max().unwrap_or(0))
-        .collect();
-    let keep = Keep { row: |ty: u32, i| i as u32 <= row_closed_at[ty as usize], tile: |t, i| i as u32 <= closed_at[t] };
-    // Nothing after the last tile closed is listed: those splats are not even looked at (a
-    // million splats covering a view close it after a few dozen).
-    let listed = row_closed_at.iter().max().map_or(0, |&c| (c as usize).saturating_add(1).min(count));
-    bin_window_with(listed, |i| footprint(i).bbox, window, keep)
+    ListEnds::closing(
+        count,
+        |i| footprint(i).bbox,
+        view,
+        |i, tx, ty| {
+            let Some(alpha) = smallest_alpha(&footprint(i), tile_rect(view, tx, ty), stops) else { return false };
+            let t = (ty * view.width.div_ceil(TILE_SIZE) + tx) as usize;
+            bound[t] *= 1.0 - alpha;
+            bound[t] <= limit
+        },
+    )
 }
 
 /// Pixel rectangle of tile (tx, ty) of `window`: x in [x0, x1), y in [y0, y1).

@@ -139,203 +139,34 @@ fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
 }
 
 /// Bins splats (already sorted front to back, pixel boxes clipped to `window`) into the
-/// window's tiles.
+/// window's tiles, every list whole (the training path's binning, whose backward pass walks
+/// them; colour renders bin in bounded memory, [`super::tile_lists`]).
 pub fn bin(splats: &[Splat], window: Window) -> TileBins {
-    bin_boxes(splats.len(), |i| splats[i].bbox, window)
-}
-
-/// Bins `count` items, front to back, whose pixel boxes (x0, x1, y0, y1, clipped to `window`)
-/// `bbox` gives: `entries` are positions in that order.
-pub fn bin_boxes(count: usize, bbox: impl Fn(usize) -> [u32; 4], window: Window) -> TileBins {
-    bin_boxes_with(count, bbox, window, Keep { row: |_, _| true, tile: |_, _| true })
-}
-
-/// [`bin_boxes`], listing only what `keep` keeps.
-fn bin_boxes_with(
-    count: usize,
-    bbox: impl Fn(usize) -> [u32; 4],
-    window: Window,
-    keep: Keep<impl Fn(u32, usize) -> bool, impl Fn(usize, usize) -> bool>,
-) -> TileBins {
     let tiles_x = window.width.div_ceil(TILE_SIZE);
     let tiles_y = window.height.div_ceil(TILE_SIZE);
     let tile_count = (tiles_x * tiles_y) as usize;
     let mut offsets = vec![0usize; tile_count + 1];
-    let for_each_tile = |i: usize, f: &mut dyn FnMut(usize)| {
-        let [x0, x1, y0, y1] = bbox(i);
-        for ty in tile_range(y0 - window.y0, y1 - window.y0).filter(|&ty| (keep.row)(ty, i)) {
+    let for_each_tile = |s: &Splat, f: &mut dyn FnMut(usize)| {
+        let [x0, x1, y0, y1] = s.bbox;
+        for ty in tile_range(y0 - window.y0, y1 - window.y0) {
             for tx in tile_range(x0 - window.x0, x1 - window.x0) {
-                let t = (ty * tiles_x + tx) as usize;
-                if (keep.tile)(t, i) {
-                    f(t);
-                }
+                f((ty * tiles_x + tx) as usize);
             }
         }
     };
-    for i in 0..count {
-        for_each_tile(i, &mut |t| offsets[t + 1] += 1);
+    for s in splats {
+        for_each_tile(s, &mut |t| offsets[t + 1] += 1);
     }
     for t in 0..tile_count {
         offsets[t + 1] += offsets[t];
     }
     let mut cursor = offsets.clone();
     let mut entries = vec![0u32; offsets[tile_count]];
-    for i in 0..count {
-        for_each_tile(i, &mut |t| {
+    for (i, s) in splats.iter().enumerate() {
+        for_each_tile(s, &mut |t| {
             entries[cursor[t]] = i as u32;
             cursor[t] += 1;
         });
     }
     TileBins { window, tiles_x, tiles_y, offsets, entries }
-}
-
-/// How much one binning may hold: tile-list entries (4 bytes each) and window pixels (the
-/// blend's per-pixel arrays take 24 bytes each).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct BinBudget {
-    pub entries: u64,
-    pub pixels: u64,
-}
-
-impl BinBudget {
-    /// 2^24 entries (64 MiB of lists) and 2^20 pixels (24 MiB of blend arrays): a view of any
-    /// size and any splats renders within about 100 MiB besides its image and its splats.
-    pub const DEFAULT: Self = Self { entries: 1 << 24, pixels: 1 << 20 };
-}
-
-/// Splits `full` into windows whose binning keeps within `budget`: bands of whole tile rows,
-/// top to bottom, and where a single tile row holds more entries than the budget, spans of its
-/// tiles, left to right. `count` items (front to back) have pixel boxes `bbox` (x0, x1, y0,
-/// y1, inside `full`). A single tile is never split, so a window may exceed the entry budget
-/// when one tile alone does (at most `count` entries).
-///
-/// Holding every tile's list at once takes items x tiles entries: 60,000 splats covering a
-/// 1920x1080 view are 490M entries (2 GB). Windows keep memory bounded; the work stays that
-/// of the entries, plus one pass over the items per window.
-pub fn bounded_windows(count: usize, bbox: impl Fn(usize) -> [u32; 4], full: Window, budget: BinBudget) -> Vec<Window> {
-    let tiles_x = full.width.div_ceil(TILE_SIZE);
-    let tiles_y = full.height.div_ceil(TILE_SIZE);
-    let tile_ranges = |i: usize| {
-        let [x0, x1, y0, y1] = bbox(i);
-        (tile_range(x0 - full.x0, x1 - full.x0), tile_range(y0 - full.y0, y1 - full.y0))
-    };
-    // Entries per tile row: each item adds its span of tiles to every row it covers.
-    let mut rows = vec![0i64; tiles_y as usize + 1];
-    for i in 0..count {
-        let (xs, ys) = tile_ranges(i);
-        rows[ys.start as usize] += i64::from(xs.len() as u32);
-        rows[ys.end as usize] -= i64::from(xs.len() as u32);
-    }
-    let mut running = 0i64;
-    let row_entries: Vec<u64> = rows[..tiles_y as usize]
-        .iter()
-        .map(|d| {
-            running += d;
-            running as u64
-        })
-        .collect();
-    let row_pixels = u64::from(tiles_x) * u64::from(TILE_SIZE * TILE_SIZE);
-    let tile_rows = |ty0: u32, ty1: u32| {
-        let y0 = full.y0 + ty0 * TILE_SIZE;
-        Window { x0: full.x0, y0, width: full.width, height: (ty1 * TILE_SIZE).min(full.height) - ty0 * TILE_SIZE }
-    };
-    let mut windows = Vec::new();
-    let mut ty = 0;
-    while ty < tiles_y {
-        if row_entries[ty as usize] > budget.entries || row_pixels > budget.pixels {
-            windows.extend(row_spans(count, &tile_ranges, tile_rows(ty, ty + 1), ty, budget));
-            ty += 1;
-            continue;
-        }
-        let (mut end, mut entries, mut pixels) = (ty, 0u64, 0u64);
-        while end < tiles_y
-            && entries + row_entries[end as usize] <= budget.entries
-            && pixels + row_pixels <= budget.pixels
-        {
-            entries += row_entries[end as usize];
-            pixels += row_pixels;
-            end += 1;
-        }
-        windows.push(tile_rows(ty, end));
-        ty = end;
-    }
-    windows
-}
-
-/// Spans of tile row `ty` (the window `row`) within `budget`, left to right.
-fn row_spans(
-    count: usize,
-    tile_ranges: &impl Fn(usize) -> (std::ops::Range<u32>, std::ops::Range<u32>),
-    row: Window,
-    ty: u32,
-    budget: BinBudget,
-) -> Vec<Window> {
-    let tiles_x = row.width.div_ceil(TILE_SIZE);
-    let mut columns = vec![0i64; tiles_x as usize + 1];
-    for i in 0..count {
-        let (xs, ys) = tile_ranges(i);
-        if ys.contains(&ty) {
-            columns[xs.start as usize] += 1;
-            columns[xs.end as usize] -= 1;
-        }
-    }
-    let tile_pixels = u64::from(TILE_SIZE * TILE_SIZE);
-    let span = |tx0: u32, tx1: u32| Window {
-        x0: row.x0 + tx0 * TILE_SIZE,
-        width: (tx1 * TILE_SIZE).min(row.width) - tx0 * TILE_SIZE,
-        ..row
-    };
-    let (mut spans, mut start, mut entries, mut running) = (Vec::new(), 0, 0u64, 0i64);
-    for tx in 0..tiles_x {
-        running += columns[tx as usize];
-        let pixels = u64::from(tx - start) * tile_pixels;
-        if tx > start && (entries + running as u64 > budget.entries || pixels + tile_pixels > budget.pixels) {
-            spans.push(span(start, tx));
-            (start, entries) = (tx, 0);
-        }
-        entries += running as u64;
-    }
-    spans.push(span(start, tiles_x));
-    spans
-}
-
-/// Bins, into `window`'s tiles, the items among `count` (front to back) whose pixel boxes
-/// `bbox` meet the window, their boxes clipped to it: `entries` are item positions, as
-/// [`bin_boxes`] gives them for all items.
-pub fn bin_window(count: usize, bbox: impl Fn(usize) -> [u32; 4], window: Window) -> TileBins {
-    bin_window_with(count, bbox, window, Keep { row: |_, _| true, tile: |_, _| true })
-}
-
-/// Which items a binning lists: item `i` in tile row `ty` only where `row(ty, i)` (a cheap test
-/// that skips whole rows), and in tile `t` only where `tile(t, i)` (tiles and rows numbered in
-/// the window).
-pub struct Keep<R: Fn(u32, usize) -> bool, T: Fn(usize, usize) -> bool> {
-    pub row: R,
-    pub tile: T,
-}
-
-/// [`bin_window`], listing only what `keep` keeps.
-pub fn bin_window_with(
-    count: usize,
-    bbox: impl Fn(usize) -> [u32; 4],
-    window: Window,
-    keep: Keep<impl Fn(u32, usize) -> bool, impl Fn(usize, usize) -> bool>,
-) -> TileBins {
-    let (x_end, y_end) = (window.x0 + window.width, window.y0 + window.height);
-    let clipped = |i: usize| {
-        let [x0, x1, y0, y1] = bbox(i);
-        [x0.max(window.x0), x1.min(x_end), y0.max(window.y0), y1.min(y_end)]
-    };
-    let inside: Vec<u32> = (0..count)
-        .filter(|&i| {
-            let [x0, x1, y0, y1] = clipped(i);
-            x0 < x1 && y0 < y1
-        })
-        .map(|i| i as u32)
-        .collect();
-    let item = |k: usize| inside[k] as usize;
-    let keep = Keep { row: |ty, k| (keep.row)(ty, item(k)), tile: |t, k| (keep.tile)(t, item(k)) };
-    let mut bins = bin_boxes_with(inside.len(), |k| clipped(item(k)), window, keep);
-    bins.entries.iter_mut().for_each(|e| *e = inside[*e as usize]);
-    bins
 }

@@ -1,0 +1,296 @@
+//! A view's tile lists in bounded memory: how long each tile's list is, the windows the view is
+//! blended in, and each window's lists.
+//!
+//! Holding every tile's list at once takes items x tiles entries: 60,000 splats covering a
+//! 1920x1080 view are 490M entries (2 GB). [`ListEnds`] first works out, per tile, where its
+//! list ends and how many entries it holds, in memory of the tiles alone; [`ListEnds::windows`]
+//! then cuts the view into windows whose lists fit a [`BinBudget`], and [`ListEnds::bin`] fills
+//! one window's lists at a time.
+//!
+//! A list may end before the last item that overlaps its tile (where the tile is surely opaque,
+//! [`super::opaque_tiles`]). Both passes walk, per item and tile row, only the tiles still open
+//! ([`OpenTiles`]): their work is that of the entries listed, plus one step per item and row,
+//! however many items overlap tiles that have closed.
+
+use super::tiles::TileBins;
+use super::{TILE_SIZE, Window};
+
+/// How much one binning may hold: tile-list entries (4 bytes each) and window pixels (the
+/// blend's per-pixel arrays take 24 bytes each).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BinBudget {
+    pub entries: u64,
+    pub pixels: u64,
+}
+
+impl BinBudget {
+    /// 2^24 entries (64 MiB of lists) and 2^20 pixels (24 MiB of blend arrays): a view of any
+    /// size and any splats renders within about 100 MiB besides its image and its splats.
+    pub const DEFAULT: Self = Self { entries: 1 << 24, pixels: 1 << 20 };
+}
+
+/// Position of a tile that never closes.
+pub const OPEN: u32 = u32::MAX;
+
+/// Per tile of a view (row-major), where its list ends and how long it is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ListEnds {
+    /// The whole view; tiles start at its top left corner.
+    pub view: Window,
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    /// Position of the last item listed in each tile ([`OPEN`]: the list runs to the last item
+    /// that overlaps the tile).
+    pub closed_at: Vec<u32>,
+    /// Entries in each tile's list.
+    pub lengths: Vec<u32>,
+}
+
+impl ListEnds {
+    /// The lists of `count` items (front to back) whose pixel boxes (x0, x1, y0, y1, inside
+    /// `view`) `bbox` gives, every list running to its tile's last item.
+    pub fn full(count: usize, bbox: impl Fn(usize) -> [u32; 4], view: Window) -> Self {
+        Self::closing(count, bbox, view, |_, _, _| false)
+    }
+
+    /// The lists of `count` items with boxes `bbox`, each ending at the first item for which
+    /// `closes(item, tx, ty)` holds (asked of each item in order, for the tiles still open).
+    pub fn closing(
+        count: usize,
+        bbox: impl Fn(usize) -> [u32; 4],
+        view: Window,
+        mut closes: impl FnMut(usize, u32, u32) -> bool,
+    ) -> Self {
+        let (tiles_x, tiles_y) = (view.width.div_ceil(TILE_SIZE), view.height.div_ceil(TILE_SIZE));
+        let tile_count = (tiles_x * tiles_y) as usize;
+        let mut ends = Self { view, tiles_x, tiles_y, closed_at: vec![OPEN; tile_count], lengths: vec![0; tile_count] };
+        let mut open = OpenTiles::new(tiles_x, tiles_y);
+        for i in 0..count {
+            if open.none() {
+                break;
+            }
+            let Some(range) = tile_box(bbox(i), view) else { continue };
+            open.walk(range, |tx, ty| {
+                let t = (ty * tiles_x + tx) as usize;
+                ends.lengths[t] += 1;
+                let closed = closes(i, tx, ty);
+                if closed {
+                    ends.closed_at[t] = i as u32;
+                }
+                closed
+            });
+        }
+        ends
+    }
+
+    /// Windows of the view whose lists hold at most `budget`: bands of whole tile rows, top to
+    /// bottom, and where a single tile row holds more than the budget, spans of its tiles, left
+    /// to right. A single tile is never split, so a window may exceed the entry budget when one
+    /// tile alone does.
+    pub fn windows(&self, budget: BinBudget) -> Vec<Window> {
+        let row_entries: Vec<u64> =
+            (0..self.tiles_y).map(|ty| self.row(ty).iter().map(|&n| u64::from(n)).sum()).collect();
+        let row_pixels = u64::from(self.tiles_x) * u64::from(TILE_SIZE * TILE_SIZE);
+        let mut windows = Vec::new();
+        let mut ty = 0;
+        while ty < self.tiles_y {
+            if row_entries[ty as usize] > budget.entries || row_pixels > budget.pixels {
+                windows.extend(self.row_spans(ty, budget));
+                ty += 1;
+                continue;
+            }
+            let (mut end, mut entries, mut pixels) = (ty, 0u64, 0u64);
+            while end < self.tiles_y
+                && entries + row_entries[end as usize] <= budget.entries
+                && pixels + row_pixels <= budget.pixels
+            {
+                entries += row_entries[end as usize];
+                pixels += row_pixels;
+                end += 1;
+            }
+            windows.push(self.tile_window(0, self.tiles_x, ty, end));
+            ty = end;
+        }
+        windows
+    }
+
+    /// Spans of tile row `ty` within `budget`, left to right.
+    fn row_spans(&self, ty: u32, budget: BinBudget) -> Vec<Window> {
+        let tile_pixels = u64::from(TILE_SIZE * TILE_SIZE);
+        let (mut spans, mut start, mut entries) = (Vec::new(), 0, 0u64);
+        for (tx, &length) in (0..).zip(self.row(ty)) {
+            let pixels = u64::from(tx - start) * tile_pixels;
+            if tx > start && (entries + u64::from(length) > budget.entries || pixels + tile_pixels > budget.pixels) {
+                spans.push(self.tile_window(start, tx, ty, ty + 1));
+                (start, entries) = (tx, 0);
+            }
+            entries += u64::from(length);
+        }
+        spans.push(self.tile_window(start, self.tiles_x, ty, ty + 1));
+        spans
+    }
+
+    fn row(&self, ty: u32) -> &[u32] {
+        let start = (ty * self.tiles_x) as usize;
+        &self.lengths[start..start + self.tiles_x as usize]
+    }
+
+    /// The pixels of tiles [tx0, tx1) x [ty0, ty1).
+    fn tile_window(&self, tx0: u32, tx1: u32, ty0: u32, ty1: u32) -> Window {
+        let v = self.view;
+        let (x0, y0) = (tx0 * TILE_SIZE, ty0 * TILE_SIZE);
+        Window {
+            x0: v.x0 + x0,
+            y0: v.y0 + y0,
+            width: (tx1 * TILE_SIZE).min(v.width) - x0,
+            height: (ty1 * TILE_SIZE).min(v.height) - y0,
+        }
+    }
+
+    /// The lists of `window` (made of whole tiles of the view, as [`ListEnds::windows`] gives
+    /// them) of the `count` items with boxes `bbox` these ends were found for: `entries` are
+    /// item positions, front to back in each tile.
+    pub fn bin(&self, count: usize, bbox: impl Fn(usize) -> [u32; 4], window: Window) -> TileBins {
+        let (tiles_x, tiles_y) = (window.width.div_ceil(TILE_SIZE), window.height.div_ceil(TILE_SIZE));
+        let (ox, oy) = ((window.x0 - self.view.x0) / TILE_SIZE, (window.y0 - self.view.y0) / TILE_SIZE);
+        let view_tile = |tx: u32, ty: u32| ((ty + oy) * self.tiles_x + tx + ox) as usize;
+        let mut offsets = Vec::with_capacity((tiles_x * tiles_y) as usize + 1);
+        offsets.push(0usize);
+        for ty in 0..tiles_y {
+            for tx in 0..tiles_x {
+                offsets.push(offsets.last().expect("starts with 0") + self.lengths[view_tile(tx, ty)] as usize);
+            }
+        }
+        let mut cursor = offsets.clone();
+        let mut entries = vec![0u32; *offsets.last().expect("starts with 0")];
+        let mut open = OpenTiles::new(tiles_x, tiles_y);
+        for i in 0..count {
+            if open.none() {
+                break;
+            }
+            let Some(range) = tile_box(bbox(i), window) else { continue };
+            open.walk(range, |tx, ty| {
+                let t = (ty * tiles_x + tx) as usize;
+                entries[cursor[t]] = i as u32;
+                cursor[t] += 1;
+                self.closed_at[view_tile(tx, ty)] == i as u32
+            });
+        }
+        debug_assert_eq!(cursor[..cursor.len() - 1], offsets[1..], "the lists are as long as counted");
+        TileBins { window, tiles_x, tiles_y, offsets, entries }
+    }
+}
+
+/// The tiles [tx0, tx1) x [ty0, ty1) of `window` that the pixel box `bbox` meets, if any.
+fn tile_box([x0, x1, y0, y1]: [u32; 4], window: Window) -> Option<[u32; 4]> {
+    let [x0, x1] = [x0.max(window.x0), x1.min(window.x0 + window.width)];
+    let [y0, y1] = [y0.max(window.y0), y1.min(window.y0 + window.height)];
+    (x0 < x1 && y0 < y1).then(|| {
+        let tiles = |p0: u32, p1: u32, o: u32| [(p0 - o) / TILE_SIZE, (p1 - 1 - o) / TILE_SIZE + 1];
+        let ([tx0, tx1], [ty0, ty1]) = (tiles(x0, x1, window.x0), tiles(y0, y1, window.y0));
+        [tx0, tx1, ty0, ty1]
+    })
+}
+
+/// The tiles not yet closed, row by row: in each row, every tile points to the first open tile
+/// at or after it (closed tiles are skipped in near-constant time, pointers being shortened as
+/// they are followed), so a walk over a box costs its open tiles plus one step per row.
+struct OpenTiles {
+    tiles_x: u32,
+    /// Per row, `tiles_x + 1` pointers (the last, one past the row, is never closed).
+    next: Vec<u32>,
+    open_in_row: Vec<u32>,
+    open: usize,
+}
+
+impl OpenTiles {
+    fn new(tiles_x: u32, tiles_y: u32) -> Self {
+        let next = (0..tiles_y).flat_map(|_| 0..=tiles_x).collect();
+        Self { tiles_x, next, open_in_row: vec![tiles_x; tiles_y as usize], open: (tiles_x * tiles_y) as usize }
+    }
+
+    fn none(&self) -> bool {
+        self.open == 0
+    }
+
+    /// Calls `visit(tx, ty)` for the open tiles of [tx0, tx1) x [ty0, ty1), row by row, left to
+    /// right; a tile closes when `visit` returns true.
+    fn walk(&mut self, [tx0, tx1, ty0, ty1]: [u32; 4], mut visit: impl FnMut(u32, u32) -> bool) {
+        let stride = self.tiles_x as usize + 1;
+        for ty in ty0..ty1 {
+            if self.open_in_row[ty as usize] == 0 {
+                continue;
+            }
+            let row = &mut self.next[ty as usize * stride..(ty as usize + 1) * stride];
+            let mut tx = first_open(row, tx0);
+            while tx < tx1 {
+                if visit(tx, ty) {
+                    row[tx as usize] = tx + 1;
+                    self.open_in_row[ty as usize] -= 1;
+                    self.open -= 1;
+                }
+                tx = first_open(row, tx + 1);
+            }
+        }
+    }
+}
+
+/// The first open tile at or after `tx` in `row`, halving the paths followed.
+fn first_open(row: &mut [u32], mut tx: u32) -> u32 {
+    while row[tx as usize] != tx {
+        let skip = row[row[tx as usize] as usize];
+        row[tx as usize] = skip;
+        tx = skip;
+    }
+    tx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every list of a window holds exactly the items whose boxes meet its tile, up to the
+    /// position where the tile closed, in order; windows split the view within the budget.
+    #[test]
+    fn lists_hold_the_overlapping_items_up_to_where_their_tile_closed() {
+        let view = Window { x0: 0, y0: 0, width: 100, height: 70 };
+        let boxes: Vec<[u32; 4]> = (0..300u32)
+            .map(|i| {
+                let (x, y, w, h) = ((i * 37) % 97, (i * 53) % 67, 1 + (i * 7) % 60, 1 + (i * 11) % 40);
+                [x, (x + w).min(100), y, (y + h).min(70)]
+            })
+            .collect();
+        // Tile (tx, ty) closes at the (tx + ty + 2)-th item that reaches it.
+        let mut reached = [0u32; 7 * 5];
+        let ends = ListEnds::closing(
+            boxes.len(),
+            |i| boxes[i],
+            view,
+            |_, tx, ty| {
+                let t = (ty * 7 + tx) as usize;
+                reached[t] += 1;
+                reached[t] == tx + ty + 2
+            },
+        );
+        let expected = |tx: u32, ty: u32| -> Vec<u32> {
+            let (px, py) = (tx * TILE_SIZE, ty * TILE_SIZE);
+            let meets = |b: &[u32; 4]| b[0] < px + TILE_SIZE && b[1] > px && b[2] < py + TILE_SIZE && b[3] > py;
+            (0..300u32).filter(|&i| meets(&boxes[i as usize])).take((tx + ty + 2) as usize).collect()
+        };
+        for budget in [BinBudget { entries: 1 << 20, pixels: 1 << 20 }, BinBudget { entries: 30, pixels: 1 << 20 }] {
+            let windows = ends.windows(budget);
+            assert_eq!(windows.len() > 1, budget.entries == 30, "{budget:?}");
+            let mut covered = 0;
+            for w in windows {
+                let bins = ends.bin(boxes.len(), |i| boxes[i], w);
+                assert!(bins.entries.len() as u64 <= budget.entries || bins.tiles_x * bins.tiles_y == 1, "{w:?}");
+                for t in 0..(bins.tiles_x * bins.tiles_y) as usize {
+                    let [x0, _, y0, _] = bins.tile_rect(t);
+                    assert_eq!(bins.tile(t), expected(x0 / TILE_SIZE, y0 / TILE_SIZE), "window {w:?}, tile {t}");
+                }
+                covered += w.width * w.height;
+            }
+            assert_eq!(covered, 100 * 70, "the windows tile the view");
+        }
+    }
+}
