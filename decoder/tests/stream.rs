@@ -285,7 +285,7 @@ fn absurd_declared_sizes_are_refused_quickly() {
     let more = with_payload(&bytes, Tag::HEAD, |p| p[1..5].copy_from_slice(&1000u32.to_le_bytes()));
     let err = stream::decode(&more).unwrap_err().to_string();
     assert!(err.contains("POSN"), "{err}");
-    // The maximum count in a stream padded to 40 KB: more than one Gaussian per byte.
+    // The maximum count in a stream padded to 40 KB: more than one Gaussian per two bytes.
     let mut sections: Vec<(Tag, Vec<u8>)> = pwgs_bitstream::Container::parse(&bytes)
         .unwrap()
         .sections
@@ -297,7 +297,7 @@ fn absurd_declared_sizes_are_refused_quickly() {
     sections.push((Tag(*b"pad "), vec![0; 40_000]));
     let huge = pwgs_bitstream::write_container(&sections);
     let err = stream::decode(&huge).unwrap_err().to_string();
-    assert!(err.contains("HEAD") && err.contains("gaussian count 16777216 exceeds the stream's length"), "{err}");
+    assert!(err.contains("HEAD") && err.contains("gaussian count 16777216 exceeds half the stream's length"), "{err}");
     let over = with_payload(&bytes, Tag::HEAD, |p| p[1..5].copy_from_slice(&(MAX_GAUSSIANS + 1).to_le_bytes()));
     assert!(stream::decode(&over).unwrap_err().to_string().contains("exceeds the limit"));
     // A frequency table claiming 2^32 - 1 symbols.
@@ -408,10 +408,10 @@ fn sh_rest_must_be_absent_at_degree_zero_and_checks_run_in_spec_order() {
     assert!(err.contains("ROTN"), "{err}");
 }
 
-/// 400 identical Gaussians in two grid cells code to less than a byte per Gaussian: the writer
-/// pads such a stream, so that what it writes decodes (a fuzz finding: it did not).
+/// 400 identical Gaussians in two grid cells code to less than two bytes per Gaussian: the
+/// writer pads such a stream, so that what it writes decodes (a fuzz finding: it did not).
 #[test]
-fn redundant_content_is_padded_to_a_byte_per_gaussian() {
+fn redundant_content_is_padded_to_two_bytes_per_gaussian() {
     let mut content = random_content(400, 0, 11);
     content.positions = (0..400).map(|i| [i % 2, 0, 0]).collect();
     content.log_scales.fill([-80; 3]);
@@ -419,11 +419,10 @@ fn redundant_content_is_padded_to_a_byte_per_gaussian() {
     content.opacity_logits.fill(3);
     content.sh_dc.fill([1, 2, 3]);
     let bytes = encode(&content);
-    assert!(bytes.len() >= 400, "{} bytes for 400 Gaussians", bytes.len());
     let c = pwgs_bitstream::Container::parse(&bytes).unwrap();
     let pad = c.section(stream::PADDING).expect("padded");
-    assert_eq!(bytes.len(), 400.max(bytes.len() - pad.payload.len()));
-    assert!(pad.payload.len() + pwgs_bitstream::SECTION_OVERHEAD < 400);
+    assert_eq!(bytes.len(), 800, "exactly the least length 400 Gaussians need");
+    assert!(pad.payload.len() + pwgs_bitstream::SECTION_OVERHEAD < 800);
     assert_eq!(stream::decode(&bytes).unwrap().content, Content::Plain(Box::new(reordered(&content))));
     // Real content needs no padding.
     let plain = encode(&random_content(400, 0, 11));

@@ -164,13 +164,12 @@ fn zeroed(mut anchors: QuantizedAnchors) -> QuantizedAnchors {
     anchors
 }
 
-/// `bytes` without its padding section, then, with `Some(len)`, padded to exactly `len`
-/// bytes (a stream at a chosen distance from a per-byte limit).
-fn padded_to(bytes: &[u8], len: Option<usize>) -> Vec<u8> {
+/// `bytes` with its padding section replaced so that the stream is exactly `len` bytes (a
+/// stream at a chosen distance from a per-byte limit).
+fn padded_to(bytes: &[u8], len: usize) -> Vec<u8> {
     let container = Container::parse(bytes).expect("a valid stream");
     let sections: Vec<(Tag, Vec<u8>)> =
         container.sections.iter().filter(|s| s.tag != PADDING).map(|s| (s.tag, s.payload.to_vec())).collect();
-    let Some(len) = len else { return write_container(&sections) };
     let unpadded = write_container(&sections).len();
     assert!(unpadded < len, "the stream is {unpadded} bytes without padding, not below {len}");
     (0..len - unpadded)
@@ -192,8 +191,8 @@ pub fn refusals() -> Vec<Refusal> {
         description: description.into(),
         bytes,
     };
-    // 400 anchors with F = 200 and all-zero values: 200 + 6 + 16 = 222 values each, more than
-    // 64 per byte of the stream once its padding is removed.
+    // 400 anchors with F = 200 and all-zero values: 200 + 6 + 16 = 222 values each, 88,800 in
+    // all, so at least 2,775 bytes at 32 values per byte; padded to 2,774.
     let mut wide = synthetic_anchors(400, 33);
     wide.feature_dim = 200;
     wide.features = vec![0; 400 * 200];
@@ -203,7 +202,7 @@ pub fn refusals() -> Vec<Refusal> {
         m.w1 = vec![0; m.hidden * 204];
         [&mut m.b1, &mut m.w2, &mut m.b2].into_iter().for_each(|t| t.fill(0));
     }
-    let unpadded = padded_to(&encode(&wide), None);
+    let one_byte_short = padded_to(&encode(&wide), 2774);
     let with_grid = encode(&with_context(synthetic_anchors(40, 37), 38));
     // 40 anchors (F = 6, K = 4) with networks of width 256: 74 x 256 = 18,944 multiply-adds
     // per anchor and view, 757,760 in all, so at least 740 bytes; padded to 739.
@@ -235,8 +234,9 @@ pub fn refusals() -> Vec<Refusal> {
             ..c.mlp.clone()
         };
     }
-    // 1,000 anchors with every mask open: 4,000 unmasked offsets; padded to 3,999 bytes (the
-    // values need 1,000 x 28 / 64 = 438 bytes, the networks 1,000 x 592 / 1024 = 579).
+    // 1,000 anchors with every mask open: 4,000 unmasked offsets, so at least 8,000 bytes at
+    // two per offset; padded to 7,999 (the values need 1,000 x 28 / 32 = 875 bytes, the
+    // networks 1,000 x 592 / 1024 = 579).
     let mut open = zeroed(synthetic_anchors(1000, 42));
     open.masks.fill(true);
     vec![
@@ -246,7 +246,7 @@ pub fn refusals() -> Vec<Refusal> {
             "section 'AMLP': 40 anchors of 18944 multiply-adds each exceed the stream's length of 739 bytes",
             "40 anchors whose three networks are 256 wide: 18,944 multiply-adds per anchor and view in a stream of \
              739 bytes, one byte short of 1024 multiply-adds per byte.",
-            padded_to(&encode(&wide_networks), Some(739)),
+            padded_to(&encode(&wide_networks), 739),
         ),
         refusal(
             "anchor-context-multiply-adds-per-byte",
@@ -254,15 +254,15 @@ pub fn refusals() -> Vec<Refusal> {
             "section 'ACTX': 400 anchors of 8592 multiply-adds each exceed the stream's length of 3356 bytes",
             "400 anchors whose context network is 128 wide: 8,592 multiply-adds per anchor in a stream of 3,356 \
              bytes, one byte short of 1024 multiply-adds per byte.",
-            padded_to(&encode(&wide_context), Some(3356)),
+            padded_to(&encode(&wide_context), 3356),
         ),
         refusal(
             "anchor-unmasked-offsets-per-byte",
             "S12.3-neural-bound",
-            "section 'AMSK': 4000 unmasked offsets exceed the stream's length of 3999 bytes",
-            "1,000 anchors of K = 4 with every mask open in a stream of 3,999 bytes: one unmasked offset more than \
-             bytes.",
-            padded_to(&encode(&open), Some(3999)),
+            "section 'AMSK': 4000 unmasked offsets exceed half the stream's length of 7999 bytes",
+            "1,000 anchors of K = 4 with every mask open in a stream of 7,999 bytes: one byte short of two bytes \
+             per unmasked offset.",
+            padded_to(&encode(&open), 7999),
         ),
         refusal(
             "anchor-context-level",
@@ -304,8 +304,8 @@ pub fn refusals() -> Vec<Refusal> {
             "anchor-values-per-byte",
             "S12.1-work-bound",
             "section 'AMLP': 400 anchors of 222 values each exceed the stream's length",
-            "400 anchors of F = 200 in a stream stripped of its padding: more than 64 values per byte.",
-            unpadded,
+            "400 anchors of F = 200 in a stream of 2,774 bytes, one byte short of 32 values per byte.",
+            one_byte_short,
         ),
         refusal(
             "anchor-missing-masks",

@@ -6,7 +6,6 @@
 
 use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 
-use super::DecodeError;
 use super::anchor_context::{
     AnchorModels, AttributeBlocks, CONTEXT, QuantizedContext, predicted_values, read_blocks, write_blocks,
 };
@@ -15,6 +14,7 @@ use super::gaussian_model::GaussianModel;
 use super::octree::OctreeError;
 use super::plain::{Models, PositionGrid, Rows, ValueCheck, read_block, read_positions, write_block, write_positions};
 use super::wrap::{MAX_EXPONENT, MIN_EXPONENT, power_of_two, quantize_to_step};
+use super::{BYTES_PER_GAUSSIAN, DecodeError};
 use crate::anchor::{AnchorModel, Mlp};
 
 pub const ANCHOR_POSITIONS: Tag = Tag(*b"APOS");
@@ -31,7 +31,7 @@ pub const MAX_HIDDEN: usize = 256;
 
 /// Quantized values a stream may hold per byte of its length, on average (SPEC.md section 9):
 /// with the anchor count this bounds a decoder's work by the size of the stream.
-pub const VALUES_PER_BYTE: u64 = 64;
+pub const VALUES_PER_BYTE: u64 = 32;
 
 /// The values one anchor holds: F features, 6 scaling values, 3K offsets and K masks.
 pub fn values_per_anchor(feature_dim: usize, offsets: usize) -> u64 {
@@ -43,11 +43,6 @@ pub fn values_per_anchor(feature_dim: usize, offsets: usize) -> u64 {
 /// the count bound, a decoder's work on a view is proportional to the stream's size, whatever
 /// the widths it declares (a 1 MB stream costs at most about 2^30 multiply-adds per view).
 pub const MULTIPLY_ADDS_PER_BYTE: u64 = 1024;
-
-/// Unmasked offsets (neural Gaussians a view may show) a stream may hold per byte of its
-/// length (SPEC.md section 12.3): as many as a plain stream may hold Gaussians, so that a
-/// view's Gaussians, and the memory to render them, are bounded by the stream's size.
-pub const NEURAL_GAUSSIANS_PER_BYTE: u64 = 1;
 
 /// The multiply-add bound of `tag`'s networks (SPEC.md 12.1, 12.7): `count` anchors of `work`
 /// each in a stream of `stream_len` bytes, else the error naming the section.
@@ -285,12 +280,15 @@ impl QuantizedAnchors {
             let (_, masks) = read_block(MASKS, masks, (Models::Tables, 0, k, check_mask), Rows::plain(count))?;
             let masks: Vec<bool> = masks.into_iter().map(|m| m == 1).collect();
             let open = masks.iter().filter(|&&m| m).count();
-            if !fits_per_byte(open, 1, NEURAL_GAUSSIANS_PER_BYTE, stream_len) {
+            // Neural Gaussians a view may show: as many as a plain stream of this length may
+            // hold Gaussians (SPEC.md 12.3), so that what rendering them takes is bounded by the
+            // stream's size.
+            if !fits_per_byte(open, BYTES_PER_GAUSSIAN, 1, stream_len) {
                 return Err(DecodeError::invalid(
                     MASKS,
                     format!(
-                        "{open} unmasked offsets exceed the stream's length of {stream_len} bytes \
-                         (at most {NEURAL_GAUSSIANS_PER_BYTE} per byte)"
+                        "{open} unmasked offsets exceed half the stream's length of {stream_len} bytes \
+                         (at least {BYTES_PER_GAUSSIAN} bytes per unmasked offset)"
                     ),
                 ));
             }

@@ -104,10 +104,10 @@ fn cells(n: usize) -> Vec<[u32; 3]> {
     (0..n as u32).map(|i| [i % side, (i / side) % side, i / (side * side)]).collect()
 }
 
-/// 1,000,000 plain Gaussians of SH degree 3, every value 0, in a 1,000,000-byte stream: the
-/// most Gaussians and values a 1 MB stream holds (N = L).
+/// 500,000 plain Gaussians of SH degree 3, every value 0, in a 1,000,000-byte stream: the
+/// most Gaussians and values a 1 MB stream holds (2N = L).
 fn most_plain_gaussians() -> Vec<u8> {
-    let n = 1_000_000;
+    let n = 500_000;
     let (side, depth) = grid_for(n);
     let (steps, mut ranges) = ordinary(3);
     (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc, ranges.sh_rest) =
@@ -117,11 +117,11 @@ fn most_plain_gaussians() -> Vec<u8> {
     stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
 }
 
-/// 1,000,000 plain Gaussians of SH degree 0 on a depth-24 octree, at the corners of a 100^3
-/// lattice of cells 2^17 apart: below level 7 every node has one child, so the octree's bits
-/// are nearly free and its nodes the most a 1 MB stream holds (17 levels of 1M nodes).
+/// 500,000 plain Gaussians of SH degree 0 on a depth-24 octree, at the corners of a 100 x 100
+/// x 50 lattice of cells 2^17 apart: below level 7 every node has one child, so the octree's
+/// bits are nearly free and its nodes the most a 1 MB stream holds (17 levels of 500,000 nodes).
 fn deepest_octree() -> Vec<u8> {
-    let positions = (0..1_000_000u32).map(|i| [i % 100, (i / 100) % 100, i / 10_000].map(|c| c << 17)).collect();
+    let positions = (0..500_000u32).map(|i| [i % 100, (i / 100) % 100, i / 10_000].map(|c| c << 17)).collect();
     let (steps, mut ranges) = ordinary(0);
     (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc) = ([-128, -128], [0, 0], [0, 0], [0, 0]);
     let grid = PositionGrid { origin: [-1.0; 3], cell: 2.0 / (1u32 << 24) as f32, depth: 24 };
@@ -178,8 +178,8 @@ pub fn files() -> Vec<Hostile> {
             "anchors-neural-gaussians-at-limit.pwb",
             1,
             Some((320, 240)),
-            "6,000 anchors with K = 14 and every mask open: 84,000 neural Gaussians of scale 1/2 in an 84,000-byte \
-             stream (M = L, the most SPEC 12.3 allows), 25M tile-list entries at 320x240."
+            "6,000 anchors with K = 14 and every mask open: 84,000 neural Gaussians of scale 1/2 in a 168,000-byte \
+             stream (2M = L, the most SPEC 12.3 allows), 25M tile-list entries at 320x240."
                 .into(),
             anchor_stream(&neural),
         ),
@@ -209,35 +209,35 @@ pub fn files() -> Vec<Hostile> {
 /// takes seconds), written by `cargo run --release -p pwgs-conformance --bin limit-streams DIR`
 /// for measuring a decoder's time and memory on them.
 pub fn at_one_megabyte() -> Vec<Hostile> {
-    // The most values a 1 MB stream holds: 240,600 anchors of 266 values (F = 256, K = 1), 64 per byte of 1,000,000 bytes.
-    let most_values = uniform_anchors(240_600, (256, 1), [1; 3]);
-    // At both limits: 1,000,000 anchors of K = 1 (M = L) and F = 54 (64 values per byte).
-    let most_anchors = uniform_anchors(1_000_000, (54, 1), [1; 3]);
+    // The most values a 1 MB stream holds: 120,300 anchors of 266 values (F = 256, K = 1), 32 per byte of 1,000,000 bytes.
+    let most_values = uniform_anchors(120_300, (256, 1), [1; 3]);
+    // At all three limits: 500,000 anchors (2N = L) of K = 1 (2M = L) and F = 54 (32 values per byte).
+    let most_anchors = uniform_anchors(500_000, (54, 1), [1; 3]);
     vec![
         accepted(
             "anchors-values-and-neural-gaussians-at-limit.pwb",
             2,
             Some((1920, 1080)),
-            "1,000,000 anchors of F = 54 and K = 1 in a 1,000,000-byte stream: 64 values and one neural Gaussian per \
-             byte, both limits of SPEC 12.1 and 12.3, at 1920x1080."
+            "500,000 anchors of F = 54 and K = 1 in a 1,000,000-byte stream: 32 values per byte and one anchor and one \
+             neural Gaussian per two bytes, the limits of SPEC 4, 12.1 and 12.3, at 1920x1080."
                 .into(),
             anchor_stream(&most_anchors),
         ),
         accepted(
-            "plain-1m-sh3-at-limit.pwb",
+            "plain-500k-sh3-at-limit.pwb",
             1,
             Some((1920, 1080)),
-            "1,000,000 plain Gaussians of SH degree 3 (every value 0, scale e^-2.5) in a 1,000,000-byte stream: \
-             the most Gaussians (N = L) and values a 1 MB plain stream holds, at 1920x1080."
+            "500,000 plain Gaussians of SH degree 3 (every value 0, scale e^-2.5) in a 1,000,000-byte stream: \
+             the most Gaussians (2N = L) and values a 1 MB plain stream holds, at 1920x1080."
                 .into(),
             most_plain_gaussians(),
         ),
         accepted(
-            "plain-1m-deepest-octree.pwb",
+            "plain-500k-deepest-octree.pwb",
             2,
             None,
-            "1,000,000 plain Gaussians on a depth-24 octree in a 1,000,000-byte stream, each below level 7 the only \
-             child of its parent: 136M octree bits, nearly free to code."
+            "500,000 plain Gaussians on a depth-24 octree in a 1,000,000-byte stream, each below level 7 the only \
+             child of its parent: 68M octree bits, nearly free to code."
                 .into(),
             deepest_octree(),
         ),
@@ -245,7 +245,7 @@ pub fn at_one_megabyte() -> Vec<Hostile> {
             "anchors-values-at-limit.pwb",
             2,
             Some((1920, 1080)),
-            "240,600 anchors of F = 256 and K = 1 in a 1,000,000-byte stream: 64 values per byte, the most SPEC 12.1 \
+            "120,300 anchors of F = 256 and K = 1 in a 1,000,000-byte stream: 32 values per byte, the most SPEC 12.1 \
              allows, at 1920x1080."
                 .into(),
             anchor_stream(&most_values),

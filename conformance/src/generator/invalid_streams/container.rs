@@ -343,9 +343,9 @@ pub(super) fn container_and_fields(b: &Bases, cases: &mut Cases) {
     cases.add(
         "count-exceeds-length",
         "S4-count-vs-length",
-        "section 'HEAD': gaussian count 510 exceeds the stream's length of 509 bytes",
-        "510 Gaussians in a stream of 509 bytes (the vector count-equals-length, one byte shorter).",
-        padded(&alike, alike.len() - 1),
+        "section 'HEAD': gaussian count 510 exceeds half the stream's length of 1019 bytes",
+        "510 Gaussians in a stream of 1,019 bytes (the vector count-at-half-length, one byte shorter).",
+        padded(&alike, 2 * alike.len() - 1),
     );
     let mut huge = Sections::of(p);
     put(huge.payload(Tag::HEAD), head::COUNT, &(1u32 << 24).to_le_bytes());
@@ -354,7 +354,7 @@ pub(super) fn container_and_fields(b: &Bases, cases: &mut Cases) {
     cases.add(
         "count-2-24-in-few-kb",
         "S9-count-few-kb",
-        "section 'HEAD': gaussian count 16777216 exceeds the stream's length",
+        "section 'HEAD': gaussian count 16777216 exceeds half the stream's length",
         "A stream of about 4 KB declaring 2^24 Gaussians of degree 3: refused before any section is decoded.",
         huge.seal(),
     );

@@ -78,7 +78,7 @@ pub(super) fn order(b: &Bases, cases: &mut Cases) {
     cases.add(
         "order-count-before-presence",
         "S6.4-d-before-e",
-        "section 'HEAD': gaussian count 1048576 exceeds the stream's length",
+        "section 'HEAD': gaussian count 1048576 exceeds half the stream's length",
         "A count of 2^20 in a stream of a few hundred bytes, and no COLR section.",
         edit(p, |s| {
             large_count(s);
@@ -184,7 +184,7 @@ pub(super) fn order(b: &Bases, cases: &mut Cases) {
     cases.add(
         "order-count-before-posn",
         "S4-count-vs-length-order",
-        "section 'HEAD': gaussian count 1048576 exceeds the stream's length",
+        "section 'HEAD': gaussian count 1048576 exceeds half the stream's length",
         "A count of 2^20 in a stream of a few hundred bytes, and POSN's chunk has 3 trailing words.",
         edit(p, |s| {
             large_count(s);
