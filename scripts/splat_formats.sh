@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 16's comparison with the formats splat viewers ship (a benchmark, not a test): writes
+# The comparison with the formats splat viewers ship (a benchmark, not a test): writes
 # SPZ, SOG and compressed PLY of one 3DGS PLY with PlayCanvas's splat-transform (installed
 # from npm into DIR/npm), converts each back to PLY with it, compresses the input with pwenc at
 # several qualities, and scores every one of them with `pwenc compare` against the input's own

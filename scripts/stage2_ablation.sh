@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 19's stage-2 rows, one change at a time from the defaults, on a shared stage-1 model.
+# The stage-2 rows of docs/results/wrapper.md, one change at a time from the defaults, on a shared stage-1 model.
 #
 #   scripts/stage2_ablation.sh stage1 fern|fox DIR      # once per scene: DIR/SCENE_s1.ply
 #   scripts/stage2_ablation.sh row NAME fern|fox DIR [pwenc options...]

@@ -1,5 +1,5 @@
 //! pwbench's library: reading `pwenc --report` files into rate-distortion curves, Bjøntegaard
-//! deltas between curves, and reports with charts (issue 17).
+//! deltas between curves, and reports with charts.
 
 pub mod bjontegaard;
 pub mod plot;

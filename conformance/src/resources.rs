@@ -1,5 +1,5 @@
-//! Running a tool on a hostile input within the resource bounds every input must keep to
-//! (issue 46): at most 1 GiB of address space (`ulimit -v`, the allocation cap; the process
+//! Running a tool on a hostile input within the resource bounds every input must keep to: at
+//! most 1 GiB of address space (`ulimit -v`, the allocation cap; the process
 //! aborts or fails to allocate beyond it) and a bounded CPU time, read from the kernel's
 //! accounting of the waited-for child rather than from a wall clock, so that a busy machine
 //! does not make the bound flaky. The hostile files' index (`hostile/expected.json`) says

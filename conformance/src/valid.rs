@@ -2,7 +2,7 @@
 //! vector in `vectors/`, it decodes the stream to attributes with the expected SHA-256
 //! (bit-exact: SPEC.md section 7), decodes the wrapper's parameters and noise pyramids to their
 //! pinned hashes (bit-exact: SPEC.md section 11), and renders each listed camera within the
-//! render tolerance (rendering is not bit-normative: DESIGN.md section 5, rule 5).
+//! render tolerance (rendering is not bit-normative: docs/architecture.md section 3).
 
 use std::path::Path;
 

@@ -1,4 +1,4 @@
-//! The anchor base (DESIGN.md section 8; Scaffold-GS as HAC uses it): anchors with a feature,
+//! The anchor base (docs/architecture.md section 1.1; Scaffold-GS as HAC uses it): anchors with a feature,
 //! offsets and scales, from which three small MLPs derive each view's Gaussians ("neural
 //! Gaussians"). This module holds the decoded model and the derivation; training and coding
 //! build on it.

@@ -1,4 +1,4 @@
-//! Pinhole cameras in the project's one internal convention (DESIGN.md section 4): OpenCV axes
+//! Pinhole cameras in the project's one internal convention (docs/architecture.md section 1.5): OpenCV axes
 //! (x right, y down, z forward), a world-to-camera rotation and translation, and intrinsics in
 //! pixels at the rendered resolution with pixel centers at (i + 0.5, j + 0.5).
 //!

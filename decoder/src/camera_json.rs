@@ -1,4 +1,4 @@
-//! The camera file `pwdec --view` reads (DESIGN.md section 4, SPEC.md annex A), in one of two
+//! The camera file `pwdec --view` reads (docs/architecture.md section 1.5, SPEC.md annex A), in one of two
 //! forms:
 //!
 //! - pwgs: `{"width", "height", "fx", "fy", "cx", "cy", "camera_to_world"}` with a 4x4

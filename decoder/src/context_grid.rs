@@ -1,4 +1,4 @@
-//! The anchors' context grid (HAC's binary hash grid, issue 15): a few 3D grids of binary
+//! The anchors' context grid (HAC's binary hash grid): a few 3D grids of binary
 //! entries at dyadic resolutions over the anchors' octree cube, each entry holding a few ±1
 //! channels. An anchor's context is, per level, the trilinear interpolation of the 8 entries
 //! around it; an entropy model maps it to the means and scales of that anchor's attributes, so

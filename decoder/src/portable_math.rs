@@ -1,5 +1,5 @@
 //! `exp` and `ln` from IEEE-754 `+ - * /` and exact bit operations only, in a fixed order, so
-//! that they give the same bits on every machine (DESIGN.md section 5, rule 1).
+//! that they give the same bits on every machine (docs/architecture.md section 3, rule 1).
 //!
 //! The platform's `exp` and `ln` (libm, or an intrinsic the compiler picks) may round the last
 //! bit differently from one machine or library to another. The rasterizer's results feed a

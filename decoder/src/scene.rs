@@ -1,8 +1,8 @@
 //! A decoded scene, whatever its base: what tools render, hash and export go through here, so
 //! that a second kind of base adds a variant of [`Base`] rather than a `match` in every tool.
 //!
-//! Today's base is plain 3DGS: one set of Gaussians for every view. An anchor base (issue 15)
-//! derives its Gaussians from anchors for each camera; [`Scene::gaussians_for`] and
+//! The plain base is one set of Gaussians for every view; the anchor base derives its
+//! Gaussians from anchors for each camera; [`Scene::gaussians_for`] and
 //! [`Scene::attribute_hash`] are the two questions every tool asks of either.
 
 use std::borrow::Cow;

@@ -1,4 +1,4 @@
-//! The determinism lint (DESIGN.md section 5, rule 1): code that decides stream bytes,
+//! The determinism lint (docs/architecture.md section 3, rule 1): code that decides stream bytes,
 //! probability tables, reconstructed attributes or the noise uses integers and IEEE
 //! `+ - * / sqrt` only. Platform math functions (`exp`, `ln`, `powf`, `erf`, trigonometry,
 //! `mul_add`, ...) may round differently on another machine or library, so they are banned

@@ -107,7 +107,7 @@ fn quality_steps_are_exact_powers_of_sqrt2() {
     assert_eq!(QuantizerSettings::for_quality(200), QuantizerSettings::for_quality(14), "clamped");
 }
 
-/// The same model gives the same bytes whatever the number of threads (DESIGN.md section 5).
+/// The same model gives the same bytes whatever the number of threads (docs/architecture.md section 3, rule 4).
 #[test]
 fn stream_bytes_do_not_depend_on_the_thread_count() {
     let g = scene();

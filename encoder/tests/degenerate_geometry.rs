@@ -1,4 +1,4 @@
-//! Degenerate geometry in imported models (issue 46, class 3): Gaussians piled on one position,
+//! Degenerate geometry in imported models: Gaussians piled on one position,
 //! positions towards the ends of binary32, extreme scales and opacities. Each model either
 //! encodes, and decodes to the Gaussians the encoder says it kept, or is refused with an error
 //! naming the problem; none panics or loops.

@@ -1,4 +1,4 @@
-//! Bounded work and memory for every input (issue 46): `pwenc --from` on every hostile
+//! Bounded work and memory for every input: `pwenc --from` on every hostile
 //! splat file of the conformance suite (`conformance/hostile/`: degenerate geometry,
 //! decompression bombs), each under a 1 GiB address-space limit and within 1 s of CPU time
 //! (2 s in all for those it accepts and encodes): refused with its error or encoded, never a

@@ -1,4 +1,4 @@
-//! pwrate's library (issue 17): a human A/B rating study of renders ([`study`]) served as a
+//! pwrate's library: a human A/B rating study of renders ([`study`]) served as a
 //! local page ([`server`]), its judgments screened by golden questions ([`judgments`]), and
 //! their Bayesian Elo fit ([`elo`]) with a chart ([`chart`]).
 

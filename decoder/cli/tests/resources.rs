@@ -1,4 +1,4 @@
-//! Bounded work and memory for every input (issue 46): `pwdec` on every invalid file of the
+//! Bounded work and memory for every input: `pwdec` on every invalid file of the
 //! conformance suite and on every hostile stream (`conformance/hostile/`), each under a 1 GiB
 //! address-space limit and within its CPU-time bound (1 s, plus 2 s per megapixel rendered):
 //! refused with its error, or decoded and rendered, never a panic, an abort or a hang. The

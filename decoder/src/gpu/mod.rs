@@ -1,4 +1,4 @@
-//! The GPU renderer (feature `gpu`, issue 20): the decoder's views on a wgpu device, for the
+//! The GPU renderer (feature `gpu`): the decoder's views on a wgpu device, for the
 //! player and for scripts that render many views.
 //!
 //! What runs where:

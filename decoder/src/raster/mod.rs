@@ -5,7 +5,7 @@
 //! in parallel per Gaussian and blending per row of tiles; every per-pixel sum runs in a fixed
 //! order on one thread, so the output does not depend on the number of threads.
 //!
-//! Rendering is not normative bit for bit (DESIGN.md section 5, rule 5); this implementation
+//! Rendering is not normative bit for bit (docs/architecture.md section 3); this implementation
 //! is the one GPU renderers and the encoder's backward pass are checked against.
 
 pub mod alpha_lanes;

@@ -7,7 +7,7 @@
 //! - 16-bit raw values (uniform), used for escaped integers.
 //!
 //! Every probability is an integer computed with integer arithmetic, so encoder and decoder
-//! build bit-identical models on every machine (DESIGN.md section 5, rule 1).
+//! build bit-identical models on every machine (docs/architecture.md section 3, rule 1).
 
 use constriction::stream::model::{DecoderModel, EncoderModel, EntropyModel};
 use constriction::stream::queue::{DefaultRangeEncoder, RangeDecoder};

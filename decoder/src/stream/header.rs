@@ -40,7 +40,7 @@ pub struct Header {
     /// Gaussians of a plain base, anchors of an anchor base.
     pub gaussian_count: u32,
     pub sh_degree: u32,
-    /// Scene normalization (DESIGN.md section 4): world = center + scale * normalized.
+    /// Scene normalization (docs/architecture.md section 1.5): world = center + scale * normalized.
     pub center: [f32; 3],
     pub scale: f32,
     /// Color behind all Gaussians, each channel in [0, 1].

@@ -1,4 +1,4 @@
-//! Plücker ray embeddings (DESIGN.md section 4): for every pixel the line through the camera
+//! Plücker ray embeddings (docs/architecture.md section 1.2): for every pixel the line through the camera
 //! center and the pixel center, as its unit direction d and its moment m = o x d about the
 //! scene center, with o in scene-normalized coordinates so that |m| (the line's distance from
 //! the scene center) does not grow with the capture's units. Channels [dx, dy, dz, mx, my, mz].

@@ -1,4 +1,4 @@
-//! The training side of the anchors' context model (issue 15, HAC's hash-grid context): a
+//! The training side of the anchors' context model (HAC's hash-grid context): a
 //! binary context grid ([`pwgs_decoder::context_grid`]) and an MLP that maps each anchor's
 //! context to the mean and log scale of every one of its stored values, replacing the
 //! factorized model's one mean and scale per channel.

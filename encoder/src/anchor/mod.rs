@@ -1,4 +1,4 @@
-//! The anchor base's encoder side (DESIGN.md section 8, issue 15): the initial model from a
+//! The anchor base's encoder side (docs/architecture.md section 1.1): the initial model from a
 //! point cloud ([`init`]), training for pixels ([`train`]) with anchors grown and pruned
 //! ([`growth`]) and the stream content of a trained
 //! model ([`quantize`]), with its networks' steps chosen after training ([`network_steps`]) and, for a byte budget, its

@@ -1,6 +1,6 @@
 //! `--target-bytes` on the anchor base: a trained anchor stream cut to a byte budget by
 //! dropping the anchors that show least, so that a run with the wrapper and one without it can
-//! be compared at equal size (issue 19). The rate term sets the size only roughly (λ); the cut
+//! be compared at equal size. The rate term sets the size only roughly (λ); the cut
 //! is meant for the last few percent, after a λ that lands a little above the target.
 //!
 //! An anchor's importance is what its neural Gaussians show over the training views: the sum,

@@ -21,7 +21,7 @@ pub enum LpipsInput {
     /// The official convention: images mapped to [−1, 1] (2x − 1) first.
     Official,
     /// What 3DGS's `metrics.py` (its `lpipsPyTorch` copy) does: [0, 1] fed to the scaling layer
-    /// unchanged (graphdeco-inria/gaussian-splatting issue #1239). Published 3DGS LPIPS figures
+    /// unchanged (a known departure of that script from the official LPIPS). Published 3DGS LPIPS figures
     /// use this; they are not comparable with official ones.
     Unit,
 }

@@ -40,7 +40,7 @@ impl WdTarget {
 }
 
 /// How much of the feature pyramid WD compares: the reference's is every VGG16 block at every
-/// image scale; fewer cost less (training's speed-against-error table, issue 18).
+/// image scale; fewer cost less (training's speed-against-error table, docs/results/cpu-speed.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct WdDepth {
     /// VGG16 blocks, 1 to 5: relu1_2 .. relu(blocks)_x.

@@ -1,4 +1,4 @@
-//! Whole encoder runs as a library (DESIGN.md section 3): what `pwenc` does once its
+//! Whole encoder runs as a library (docs/architecture.md section 2.1): what `pwenc` does once its
 //! arguments are parsed, so that the player and scripts can run the same pipeline. Each job
 //! checks its outputs before any work, writes every file atomically, and reports what it
 //! wrote as JSON-ready summaries.

@@ -1,6 +1,6 @@
 //! Stage 2 of training: the perceptual wrapper. From the split iteration on, the distortion is
 //! Wasserstein Distortion between the wrapped render clamp-free I_base + f(I_base, noise,
-//! Plücker) and the ground truth, and f trains jointly with the Gaussians (DESIGN.md section 7).
+//! Plücker) and the ground truth, and f trains jointly with the Gaussians (docs/architecture.md section 1.2).
 //!
 //! WD goes through VGG16, far too slow on a CPU for whole images at every step, so each step
 //! scores one crop: the crops of a view come from a fixed grid of positions covering the

@@ -24,7 +24,7 @@ struct Args {
     #[arg(long, default_value_t = 1)]
     downscale: u32,
     /// The world's up of the free camera, `x,y,z` (COLMAP captures: 0,-1,0; Blender and
-    /// nerfstudio ones, and pwenc's generated scene: 0,0,1); the window can change it.
+    /// nerfstudio ones: 0,0,1; pwenc's generated scene: 0,1,0); the window can change it.
     #[arg(long, default_value = "0,-1,0", value_parser = parse_vector)]
     up: [f32; 3],
     /// Headless: the camera (JSON, SPEC.md annex A) of the view to render to --screenshot.

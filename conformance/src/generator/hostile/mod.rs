@@ -1,5 +1,5 @@
 //! Hostile inputs (`hostile/`): small files, valid or nearly so, that once made a pwgs tool
-//! crash, hang or exhaust memory, one or more per class of issue 46 (rendering memory, the
+//! crash, hang or exhaust memory, one or more per class of problem (rendering memory, the
 //! anchor base's work, degenerate geometry in importers, decompression bombs). Each is made here
 //! from integers, never copied, and `hostile/expected.json` says which tool reads it and what
 //! must happen: the resource tests (`decoder/cli/tests/resources.rs`,
@@ -47,7 +47,7 @@ pub enum Tool {
 /// One hostile file and what must happen to it (`hostile/expected.json` maps file names to it).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct HostileEntry {
-    /// Issue 46's class: 1 rendering memory, 2 anchor work, 3 degenerate geometry, 4
+    /// The class of problem: 1 rendering memory, 2 anchor work, 3 degenerate geometry, 4
     /// decompression bombs.
     pub class: u8,
     pub tool: Tool,
