@@ -64,22 +64,15 @@ impl ListEnds {
         let (tiles_x, tiles_y) = (view.width.div_ceil(TILE_SIZE), view.height.div_ceil(TILE_SIZE));
         let tile_count = (tiles_x * tiles_y) as usize;
         let mut ends = Self { view, tiles_x, tiles_y, closed_at: vec![OPEN; tile_count], lengths: vec![0; tile_count] };
-        let mut open = OpenTiles::new(tiles_x, tiles_y);
-        for i in 0..count {
-            if open.none() {
-                break;
+        walk_open_tiles(count, bbox, view, |i, tx, ty| {
+            let t = (ty * tiles_x + tx) as usize;
+            ends.lengths[t] += 1;
+            let closed = closes(i, tx, ty);
+            if closed {
+                ends.closed_at[t] = i as u32;
             }
-            let Some(range) = tile_box(bbox(i), view) else { continue };
-            open.walk(range, |tx, ty| {
-                let t = (ty * tiles_x + tx) as usize;
-                ends.lengths[t] += 1;
-                let closed = closes(i, tx, ty);
-                if closed {
-                    ends.closed_at[t] = i as u32;
-                }
-                closed
-            });
-        }
+            closed
+        });
         ends
     }
 
@@ -163,21 +156,33 @@ impl ListEnds {
         }
         let mut cursor = offsets.clone();
         let mut entries = vec![0u32; *offsets.last().expect("starts with 0")];
-        let mut open = OpenTiles::new(tiles_x, tiles_y);
-        for i in 0..count {
-            if open.none() {
-                break;
-            }
-            let Some(range) = tile_box(bbox(i), window) else { continue };
-            open.walk(range, |tx, ty| {
-                let t = (ty * tiles_x + tx) as usize;
-                entries[cursor[t]] = i as u32;
-                cursor[t] += 1;
-                self.closed_at[view_tile(tx, ty)] == i as u32
-            });
-        }
+        walk_open_tiles(count, bbox, window, |i, tx, ty| {
+            let t = (ty * tiles_x + tx) as usize;
+            entries[cursor[t]] = i as u32;
+            cursor[t] += 1;
+            self.closed_at[view_tile(tx, ty)] == i as u32
+        });
         debug_assert_eq!(cursor[..cursor.len() - 1], offsets[1..], "the lists are as long as counted");
         TileBins { window, tiles_x, tiles_y, offsets, entries }
+    }
+}
+
+/// Walks `count` items (front to back) with pixel boxes `bbox` over the tiles of `window` that
+/// each meets and that are still open, calling `visit(item, tx, ty)`; a tile closes when
+/// `visit` returns true, and the walk ends once every tile has closed.
+fn walk_open_tiles(
+    count: usize,
+    bbox: impl Fn(usize) -> [u32; 4],
+    window: Window,
+    mut visit: impl FnMut(usize, u32, u32) -> bool,
+) {
+    let mut open = OpenTiles::new(window.width.div_ceil(TILE_SIZE), window.height.div_ceil(TILE_SIZE));
+    for i in 0..count {
+        if open.none() {
+            break;
+        }
+        let Some(range) = tile_box(bbox(i), window) else { continue };
+        open.walk(range, |tx, ty| visit(i, tx, ty));
     }
 }
 
