@@ -270,6 +270,10 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--base", "anchor"], "--base applies to training"),
         (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--wrapper"], "--wrapper applies to training"),
         (vec!["--from-ply", "m.ply", "-o", "x.pwb", "--wrapper-lr", "0.1"], "--wrapper-lr applies to training"),
+        // Options of a job on a scene's views, which an import has none of.
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--downscale", "2"], "--downscale applies to training"),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--export-ply", "y.ply"], "--export-ply applies to training"),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--weights", "w"], "--weights applies to training"),
         (vec![scene, "--no-wrapper", "--wrapper-width", "8"], "--wrapper-width"),
         (vec![scene, "--lambda", "0", "--context-planes", "6"], "--context-planes belongs to the context model"),
         (vec![scene, "--wrapper-lambda-scale", "twice"], "nor `auto`"),

@@ -39,8 +39,28 @@ const ANCHOR_ONLY: &[&str] = &[
     "anchor_growth",
     "fixed_anchor_steps",
 ];
-/// Options of training on a scene, besides the wrapper's, which `--from-ply` does not read.
-const TRAINING_ONLY: &[&str] = &["base", "iters", "max_gaussians", "densify_until", "position_lr", "seed"];
+/// Every option `--from-ply` reads: its input, the stream and its size, the tools for existing
+/// models, the orbit check and the report. It refuses every other one (an option added for
+/// training is refused with `--from-ply` unless it is added here).
+const IMPORT_READS: &[&str] = &[
+    "from_ply",
+    "spz_axes",
+    "output",
+    "quality",
+    "target_bytes",
+    "prune_faint",
+    "background",
+    "report",
+    "no_wrapper",
+    "orbit",
+    "up",
+    "orbit_size",
+    "orbit_renders",
+    "importance_classes",
+    "search_steps",
+    "refit_colours",
+    "refit_shapes",
+];
 /// Options only `--from-ply` reads (its input and its orbit check).
 const IMPORT_ONLY: &[&str] = &[
     "spz_axes",
@@ -265,15 +285,10 @@ impl EncodeArgs {
     /// silently differs from its command line. `given(id)` says whether the command line set
     /// the argument `id`.
     pub(crate) fn check_options(&self, given: impl Fn(&str) -> bool) -> Result<()> {
-        let wrapper = WrapperArgs::augment_args(clap::Command::new("wrapper"));
+        let every = EncodeArgs::augment_args(clap::Command::new("pwenc"));
         let (ignored, why): (Vec<&str>, &str) = match (&self.from_ply, self.base) {
             (Some(_), _) => (
-                ANCHOR_ONLY
-                    .iter()
-                    .chain(TRAINING_ONLY)
-                    .copied()
-                    .chain(wrapper.get_arguments().map(|a| a.get_id().as_str()).filter(|&id| id != "no_wrapper"))
-                    .collect(),
+                every.get_arguments().map(|a| a.get_id().as_str()).filter(|id| !IMPORT_READS.contains(id)).collect(),
                 "applies to training on a scene; --from-ply compresses the model as it is",
             ),
             (None, Base::Anchor) => (
