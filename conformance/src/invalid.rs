@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use pwgs_decoder::camera_json::parse_camera;
+use pwgs_core::camera_json::parse_camera;
 use pwgs_decoder::stream;
 
 use crate::expected::{ExpectedRefusal, ExpectedRefusals};

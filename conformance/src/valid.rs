@@ -7,7 +7,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
-use pwgs_decoder::camera_json::parse_camera;
+use pwgs_core::camera_json::parse_camera;
 use pwgs_decoder::stream;
 use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;

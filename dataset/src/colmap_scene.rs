@@ -6,8 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
-use pwgs_decoder::camera::{Camera, CameraError, Intrinsics, quaternion_to_matrix};
-use pwgs_decoder::ply::PointCloud;
+use pwgs_core::camera::{Camera, CameraError, Intrinsics, quaternion_to_matrix};
+use pwgs_core::ply::PointCloud;
 
 use crate::colmap::{self, ColmapImage, ColmapModel, ColmapPoint};
 use crate::scene::{ParsedScene, ViewSpec};

@@ -6,7 +6,7 @@
 
 use std::path::{Path, PathBuf};
 
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 
 use crate::DatasetError;
 

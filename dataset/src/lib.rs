@@ -36,11 +36,11 @@ pub enum DatasetError {
     #[error("{path}: {message}")]
     Unsupported { path: PathBuf, message: String },
     #[error(transparent)]
-    Image(#[from] pwgs_decoder::rgb_image::ImageError),
+    Image(#[from] pwgs_core::rgb_image::ImageError),
     #[error(transparent)]
-    Ply(#[from] pwgs_decoder::ply::PlyError),
+    Ply(#[from] pwgs_core::ply::PlyError),
     #[error("{path}: camera rejected: {source}")]
-    Camera { path: PathBuf, source: pwgs_decoder::camera::CameraError },
+    Camera { path: PathBuf, source: pwgs_core::camera::CameraError },
     #[error(
         "{path}: no supported scene found (looked for sparse/0 or sparse COLMAP models, transforms*.json, poses_bounds.npy)"
     )]

@@ -8,7 +8,7 @@
 use std::path::Path;
 
 use glam::{DMat4, DVec4};
-use pwgs_decoder::camera::{Camera, Intrinsics, MAX_SIDE};
+use pwgs_core::camera::{Camera, Intrinsics, MAX_SIDE};
 
 use crate::DatasetError;
 use crate::npy::read_npy;

@@ -3,8 +3,8 @@
 //! on the units a capture happens to use. Stored in the stream header.
 
 use glam::{DVec3, Vec3};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::wrapper::SceneFrame;
+use pwgs_core::camera::Camera;
+use pwgs_core::frame::SceneFrame;
 
 /// Maps world coordinates to normalized ones: `(p - center) / scale`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,7 +44,7 @@ impl SceneNormalization {
 mod tests {
     use super::*;
     use glam::Mat3;
-    use pwgs_decoder::camera::Intrinsics;
+    use pwgs_core::camera::Intrinsics;
 
     #[test]
     fn centers_cameras_and_scales_to_extent() {

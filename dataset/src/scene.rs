@@ -3,9 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::ply::PointCloud;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::camera::Camera;
+use pwgs_core::ply::PointCloud;
+use pwgs_core::rgb_image::RgbImage;
 use rayon::prelude::*;
 
 use crate::normalization::SceneNormalization;

@@ -10,9 +10,9 @@
 use std::path::{Path, PathBuf};
 
 use glam::DMat4;
-use pwgs_decoder::camera::{Camera, Intrinsics, MAX_SIDE};
-use pwgs_decoder::camera_json::focal_from_angle;
-use pwgs_decoder::ply::{PlyError, PointCloud};
+use pwgs_core::camera::{Camera, Intrinsics, MAX_SIDE};
+use pwgs_core::camera_json::focal_from_angle;
+use pwgs_core::ply::{PlyError, PointCloud};
 use serde::Deserialize;
 
 use crate::DatasetError;
@@ -179,7 +179,7 @@ fn distortion(fields: &CameraFields) -> Result<Distortion, String> {
 
 /// Loads the initialization point cloud that `ply_file_path` names.
 fn read_points(path: &Path) -> Result<PointCloud, DatasetError> {
-    pwgs_decoder::ply::point_cloud_from_bytes(&crate::read_file(path)?)
+    pwgs_core::ply::point_cloud_from_bytes(&crate::read_file(path)?)
         .map_err(|problem| PlyError { source_name: path.display().to_string(), problem }.into())
 }
 

@@ -6,8 +6,8 @@
 //! clamping; with the mild distortions of real captures (fern: k1 = 0.02) this touches a few
 //! pixels at the corners.
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::camera::Camera;
+use pwgs_core::rgb_image::RgbImage;
 
 /// Points per side of the grid over the image on which [`Distortion::check`] evaluates the
 /// distortion.
@@ -159,7 +159,7 @@ mod tests {
     use super::*;
 
     fn camera(width: u32, height: u32, focal: f32) -> Camera {
-        let intrinsics = pwgs_decoder::camera::Intrinsics {
+        let intrinsics = pwgs_core::camera::Intrinsics {
             width,
             height,
             fx: focal,

@@ -3,13 +3,13 @@
 
 use std::path::Path;
 
+use pwgs_core::camera::matrix_to_quaternion;
 use pwgs_dataset::colmap::{
     CameraModel, ColmapCamera, ColmapImage, ColmapModel, ColmapPoint, write_binary, write_text,
 };
 use pwgs_dataset::npy::{NpyArray, encode_npy};
 use pwgs_dataset::synthetic::{SyntheticOptions, cameras, generate};
 use pwgs_dataset::{Dataset, DatasetError, LoadOptions, load_cameras, load_scene};
-use pwgs_decoder::camera::matrix_to_quaternion;
 
 fn small() -> SyntheticOptions {
     SyntheticOptions { width: 48, height: 36, views: 10, seed: 3, points: 300 }

@@ -8,8 +8,9 @@
 
 use std::time::{Duration, Instant};
 
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::gpu::{GpuRenderer, Output, StageTimes};
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians, wrapped_random_scene};
+use pwgs_decoder::random_scene::wrapped_random_scene;
 
 /// Frames timed per case, after one untimed warm-up frame (shader compilation, first uploads).
 const FRAMES: usize = 5;

@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use pwgs_decoder::camera_json::parse_camera;
+use pwgs_core::camera_json::parse_camera;
 use pwgs_decoder::raster::opaque_tiles::{Stops, splat_list_ends};
 use pwgs_decoder::raster::tile_lists::BinBudget;
 use pwgs_decoder::raster::{Window, blend_bins, visible_splats};

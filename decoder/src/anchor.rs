@@ -19,9 +19,9 @@
 
 use sha2::{Digest, Sha256};
 
-use crate::camera::Camera;
-use crate::gaussians::{Gaussians, rgb_to_sh_dc};
 use crate::portable_math::{exp_f32, ln_f64};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::{Gaussians, rgb_to_sh_dc};
 
 /// A two-layer perceptron: `out = W2 · relu(W1 · in + b1) + b2`, weights row-major
 /// ([output][input]).
@@ -216,7 +216,7 @@ fn opacity_logit_of_tanh(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::{SplitMix64, axis_camera};
+    use pwgs_core::random::{SplitMix64, axis_camera};
 
     /// An MLP whose weights are `w(i)` for the i-th value (w1, b1, w2, b2 in order).
     fn mlp(inputs: usize, hidden: usize, outputs: usize, w: &mut impl FnMut() -> f32) -> Mlp {
@@ -313,7 +313,7 @@ mod tests {
                     let scale = s[3 + x].exp() / (1.0 + (-f64::from(cov[7 * j + x])).exp());
                     close(g.log_scales[next][x], scale.ln(), "log scale");
                     let rgb = 1.0 / (1.0 + (-f64::from(color[3 * j + x])).exp());
-                    close(g.sh[next * 3 + x] * crate::gaussians::SH_C0 + 0.5, rgb, "color");
+                    close(g.sh[next * 3 + x] * pwgs_core::gaussians::SH_C0 + 0.5, rgb, "color");
                 }
                 let t = f64::from(alpha[j]).tanh();
                 close(g.opacity_logits[next], (t / (1.0 - t)).ln(), "opacity logit");
@@ -355,7 +355,7 @@ mod tests {
         use crate::scene::{Base, Scene};
         let mut rng = SplitMix64(4);
         let m = model(&mut rng, 20, 4, 3);
-        let frame = crate::wrapper::SceneFrame { center: glam::Vec3::ZERO, scale: 1.0 };
+        let frame = pwgs_core::frame::SceneFrame { center: glam::Vec3::ZERO, scale: 1.0 };
         let scene = Scene { base: Base::Anchors(Box::new(m.clone())), wrapper: None, frame, background: [0.0; 3] };
         let camera = axis_camera(24, 16, 20.0, 20.0, 12.0, 8.0);
         let options = scene.render_options();

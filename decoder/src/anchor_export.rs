@@ -9,10 +9,10 @@
 //! Gaussian seen from few cameras keeps a plain color).
 
 use crate::anchor::AnchorModel;
-use crate::camera::Camera;
-use crate::gaussians::{Gaussians, opacity_to_logit, sh_coeff_count};
 use crate::raster::sh::basis;
 use crate::raster::{RenderOptions, render};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::{Gaussians, opacity_to_logit, sh_coeff_count};
 
 /// SH degree of the export.
 pub const EXPORT_DEGREE: u32 = 3;
@@ -162,7 +162,7 @@ pub fn agreement_psnr(model: &AnchorModel, export: &Gaussians, cameras: &[Camera
 pub fn sphere_cameras(center: [f32; 3], radius: f32, count: usize, size: u32) -> Vec<Camera> {
     let center = glam::Vec3::from(center);
     let f = size as f32;
-    let intrinsics = crate::camera::Intrinsics {
+    let intrinsics = pwgs_core::camera::Intrinsics {
         width: size,
         height: size,
         fx: f,

@@ -3,21 +3,14 @@
 
 pub mod anchor;
 pub mod anchor_export;
-pub mod atomic_file;
-pub mod camera;
-pub mod camera_json;
 pub mod cli_values;
 pub mod context_grid;
-pub mod gaussians;
 #[cfg(feature = "gpu")]
 pub mod gpu;
-pub mod ply;
 pub mod portable_math;
 pub mod random_scene;
 pub mod raster;
-pub mod rgb_image;
 pub mod scene;
-pub mod splat_file;
 pub mod stream;
 pub mod wrapper;
 

@@ -8,13 +8,14 @@
 use std::borrow::Cow;
 
 use crate::anchor::AnchorModel;
-use crate::camera::Camera;
-use crate::gaussians::Gaussians;
 use crate::raster::{RenderOptions, render};
-use crate::rgb_image::RgbImage;
 use crate::stream::attribute_hash;
 use crate::wrapper::synthesis::SynthesisWeights;
-use crate::wrapper::{SceneFrame, WrapperView, apply};
+use crate::wrapper::{WrapperView, apply};
+use pwgs_core::camera::Camera;
+use pwgs_core::frame::SceneFrame;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::rgb_image::RgbImage;
 
 /// The representation a stream's base reconstructs.
 #[derive(Debug, Clone, PartialEq)]
@@ -113,8 +114,8 @@ impl Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::{SplitMix64, axis_camera, random_gaussians};
     use crate::wrapper::synthesis::WrapperConfig;
+    use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 
     #[test]
     fn a_scene_shows_its_base_through_its_wrapper() {

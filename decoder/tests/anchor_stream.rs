@@ -2,8 +2,8 @@
 //! or oversized input with an error naming the problem.
 
 use pwgs_bitstream::{Container, Tag, write_container};
+use pwgs_core::random::{SplitMix64, axis_camera};
 use pwgs_decoder::context_grid::ContextGridShape;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera};
 use pwgs_decoder::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
 use pwgs_decoder::stream::anchor_context::{self, AnchorModels, QuantizedContext};
 use pwgs_decoder::stream::header::{BaseKind, Header};

@@ -3,7 +3,7 @@
 //! an error naming it.
 
 use pwgs_bitstream::{Container, Tag, write_container};
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::stream::classes::{CLASSES, ImportanceClasses};
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};

@@ -9,11 +9,12 @@
 
 use std::path::Path;
 
-use pwgs_decoder::camera_json::parse_camera;
+use pwgs_core::camera_json::parse_camera;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_decoder::gpu::{GpuRenderer, Output};
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians, wrapped_random_scene};
+use pwgs_decoder::random_scene::wrapped_random_scene;
 use pwgs_decoder::raster::tile_lists::BinBudget;
-use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::stream;
 
 fn renderer() -> Option<GpuRenderer> {

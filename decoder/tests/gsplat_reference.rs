@@ -5,8 +5,8 @@
 mod shared_data;
 
 use glam::{Mat3, Vec3};
-use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::{Camera, Intrinsics};
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, rasterize};
 use safetensors::SafeTensors;
 

@@ -13,8 +13,9 @@ use std::path::{Path, PathBuf};
 /// views, f's inputs (Plücker embeddings) and f itself, as the encoder evaluates them; and
 /// the anchor base's derivation of each view's Gaussians and its context grid; and the
 /// importance views and classes (which decide the stream's steps per Gaussian).
-const NORMATIVE: [&str; 14] = [
+const NORMATIVE: [&str; 15] = [
     "bitstream-spec/src",
+    "core/src/random.rs",
     "decoder/src/stream",
     "decoder/src/wrapper/noise.rs",
     "decoder/src/wrapper/normal_table.rs",

@@ -6,8 +6,8 @@ mod common;
 
 use common::{Rng, camera, random_gaussians};
 use glam::{Mat3, Vec3};
-use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::{Camera, Intrinsics};
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::raster::project::{ProjectionSettings, Projector, Splat, project_precise};
 
 /// Relative tolerance: f32's unit roundoff (6e-8) times a chain of a few dozen operations (the

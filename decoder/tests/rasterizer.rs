@@ -3,7 +3,7 @@
 mod common;
 
 use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
-use pwgs_decoder::gaussians::{Gaussians, SH_C0, rgb_to_sh_dc};
+use pwgs_core::gaussians::{Gaussians, SH_C0, rgb_to_sh_dc};
 use pwgs_decoder::raster::blend::{ColourMap, splat_weights};
 use pwgs_decoder::raster::opaque_tiles::{Stops, splat_list_ends};
 use pwgs_decoder::raster::tile_lists::{BinBudget, ListEnds};
@@ -151,7 +151,7 @@ fn empty_scene_is_exactly_the_background() {
 }
 
 /// Renders `g` and `g` plus `extra`; the extra Gaussians must not change a single value.
-fn assert_invisible(g: &Gaussians, extra: &Gaussians, cam: &pwgs_decoder::camera::Camera, what: &str) {
+fn assert_invisible(g: &Gaussians, extra: &Gaussians, cam: &pwgs_core::camera::Camera, what: &str) {
     let mut both = g.clone();
     for i in 0..extra.len() {
         both.push(extra.means[i], extra.log_scales[i], extra.rotations[i], extra.opacity_logits[i], extra.sh_of(i));
@@ -419,7 +419,7 @@ fn output_is_identical_for_any_thread_count() {
 fn vectorized_blending_matches_the_scalar_path() {
     use pwgs_decoder::raster::Cutoff;
     let (mut pixels, mut decided_otherwise) = (0usize, 0usize);
-    let mut check = |g: &Gaussians, cam: &pwgs_decoder::camera::Camera, window: Window, cutoff: Cutoff, what: &str| {
+    let mut check = |g: &Gaussians, cam: &pwgs_core::camera::Camera, window: Window, cutoff: Cutoff, what: &str| {
         let options = RenderOptions { background: [0.25, 0.5, 0.75], cutoff, ..Default::default() };
         let render = |blend| rasterize_window(g, cam, window, &RenderOptions { blend, ..options });
         let (scalar, vector, portable) =

@@ -3,7 +3,7 @@
 
 mod shared_data;
 
-use pwgs_decoder::ply::read_gaussians;
+use pwgs_core::ply::read_gaussians;
 
 #[test]
 fn guitar_inria_layout_loads_with_its_clamped_opacities() {

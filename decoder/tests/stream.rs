@@ -3,8 +3,8 @@
 //! hang or a huge allocation.
 
 use pwgs_bitstream::{Container, MAGIC, Tag};
-use pwgs_decoder::gaussians::sh_coeff_count;
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::gaussians::sh_coeff_count;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::stream::header::{BaseKind, Header, MAX_GAUSSIANS};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
 use pwgs_decoder::stream::{self, Content, DecodeError};

@@ -14,9 +14,9 @@ mod common;
 
 use std::time::Instant;
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::project::project_precise;
 use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, blend_bins, project_visible, rasterize};
 use pwgs_encoder::backward::backward;

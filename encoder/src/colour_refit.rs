@@ -11,8 +11,8 @@
 //! like any other value. Nothing in the stream changes but the colours' values (point-cloud
 //! codecs call this recolouring).
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::{Gaussians, SH_C0};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::{Gaussians, SH_C0};
 use pwgs_decoder::raster::blend::ColourMap;
 use pwgs_decoder::raster::{RenderOptions, Rendered, rasterize, render};
 use rayon::prelude::*;

@@ -6,7 +6,7 @@ mod grid;
 
 use std::cmp::Ordering;
 
-use pwgs_decoder::gaussians::{Gaussians, sh_band, sh_coeff_count};
+use pwgs_core::gaussians::{Gaussians, sh_band, sh_coeff_count};
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::octree::{MAX_POINTS_PER_VOXEL, OctreeError};
 use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};

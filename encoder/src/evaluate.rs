@@ -9,8 +9,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use burn::tensor::Device;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_dataset::View;
-use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::say;
 use pwgs_decoder::scene::Scene;
 use serde::Serialize;

@@ -3,9 +3,9 @@
 //! which come without cameras, on an orbit around the scene.
 
 use glam::Vec3;
-use pwgs_decoder::camera::{Camera, CameraError, Intrinsics};
+use pwgs_core::camera::{Camera, CameraError, Intrinsics};
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::scene::Scene;
 
 use crate::compress::StreamContext;

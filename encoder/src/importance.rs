@@ -11,8 +11,8 @@
 //! are the same on every machine.
 
 use glam::Vec3;
-use pwgs_decoder::camera::{Camera, CameraError, Intrinsics};
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::{Camera, CameraError, Intrinsics};
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::raster::blend::splat_weights;
 use pwgs_decoder::raster::{RenderOptions, Window, tiles, visible_splats};
 use pwgs_decoder::stream::classes::ImportanceClasses;

@@ -3,10 +3,10 @@
 //! nearly transparent (opacity 0.1) so that training decides what stays.
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use pwgs_core::gaussians::{Gaussians, opacity_to_logit, rgb_to_sh_dc, sh_coeff_count};
+use pwgs_core::ply::PointCloud;
+use pwgs_core::random::SplitMix64;
 use pwgs_dataset::Dataset;
-use pwgs_decoder::gaussians::{Gaussians, opacity_to_logit, rgb_to_sh_dc, sh_coeff_count};
-use pwgs_decoder::ply::PointCloud;
-use pwgs_decoder::random_scene::SplitMix64;
 
 /// Opacity of freshly initialized Gaussians.
 pub const INITIAL_OPACITY: f32 = 0.1;
@@ -108,7 +108,7 @@ mod tests {
         assert_eq!(g.len(), 5);
         assert!((g.log_scales[0][0] - 0.0).abs() < 1e-6, "three unit neighbours give scale 1");
         assert!(g.log_scales[4][0] > 2.0, "an isolated point gets a large scale");
-        let color = pwgs_decoder::gaussians::SH_C0 * g.sh[0] + 0.5;
+        let color = pwgs_core::gaussians::SH_C0 * g.sh[0] + 0.5;
         assert!((color - 0.2).abs() < 1e-6);
         assert!((1.0 / (1.0 + (-g.opacity_logits[0]).exp()) - INITIAL_OPACITY).abs() < 1e-6);
     }

@@ -15,11 +15,11 @@
 //! (at the input's positions that model no longer renders like the input). Together they reach
 //! 58.25 dB on biker's orbit against 58.00 dB for the colours alone.
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::{Gaussians, sh_band};
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::{Gaussians, sh_band};
+use pwgs_core::random::SplitMix64;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_decoder::raster::{RenderOptions, rasterize, render};
-use pwgs_decoder::rgb_image::RgbImage;
 use rayon::prelude::*;
 use serde::Serialize;
 

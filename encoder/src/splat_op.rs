@@ -16,8 +16,8 @@ use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Backend, Dispatch, ExtensionType, Flex, TensorMetadata, backend_extension};
 use burn::tensor::{Tensor, TensorData};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, Rendered, Window, rasterize_window};
 
 use crate::backward::{Gradients, backward};
@@ -91,8 +91,8 @@ fn gaussians_from<B: Backend>(splats: &SplatTensors<B>) -> Gaussians {
     let n = splats.means.shape().as_slice()[0];
     let sh_shape = splats.sh.shape().to_vec();
     assert!(sh_shape.len() == 3 && sh_shape[0] == n && sh_shape[2] == 3, "sh must be [N, K, 3], got {sh_shape:?}");
-    let degree = (0..=pwgs_decoder::gaussians::MAX_SH_DEGREE)
-        .find(|&d| pwgs_decoder::gaussians::sh_coeff_count(d) == sh_shape[1])
+    let degree = (0..=pwgs_core::gaussians::MAX_SH_DEGREE)
+        .find(|&d| pwgs_core::gaussians::sh_coeff_count(d) == sh_shape[1])
         .unwrap_or_else(|| panic!("{} SH coefficients is not a whole degree", sh_shape[1]));
     let g = Gaussians {
         means: arrays(&host_values::<B>(splats.means.clone())),

@@ -286,7 +286,7 @@ fn pwenc_trains_and_evaluates_the_anchor_base() {
     args.extend(["--anchor-features", "6", "--anchor-offsets", "3", "--export-ply", &ply]);
     let out = pwenc(&args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(pwgs_decoder::ply::read_gaussians(std::path::Path::new(&ply)).unwrap().gaussians.sh_degree, 3);
+    assert_eq!(pwgs_core::ply::read_gaussians(std::path::Path::new(&ply)).unwrap().gaussians.sh_degree, 3);
     let mut args: Vec<&str> = common.iter().map(String::as_str).collect();
     let stream = dir("w.pwb");
     args.extend(["-o", &stream, "--init-ply", &ply]);

@@ -38,7 +38,7 @@ fn trains_evaluates_and_writes_outputs() {
     }
     assert!(std::path::Path::new(&dir("eval")).join("view_008.png").is_file());
     assert!(std::path::Path::new(&dir("eval")).join("gt/view_008.png").is_file());
-    let model = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("model.ply"))).unwrap();
+    let model = pwgs_core::ply::read_gaussians(std::path::Path::new(&dir("model.ply"))).unwrap();
     assert_eq!(model.gaussians.len() as u64, report["training"]["gaussians"].as_u64().unwrap());
     // Resuming from the exported model works.
     let out =
@@ -51,7 +51,7 @@ fn trains_evaluates_and_writes_outputs() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("initialization: 40 of the "), "{stdout}");
-    let capped = pwgs_decoder::ply::read_gaussians(std::path::Path::new(&dir("capped.ply"))).unwrap();
+    let capped = pwgs_core::ply::read_gaussians(std::path::Path::new(&dir("capped.ply"))).unwrap();
     assert!(capped.gaussians.len() <= 40, "{} Gaussians", capped.gaussians.len());
 }
 
@@ -100,13 +100,8 @@ fn bad_input_is_a_clear_error() {
 fn compresses_an_imported_ply() {
     let tmp = tempfile::tempdir().unwrap();
     let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
-    let model = pwgs_decoder::random_scene::random_gaussians(
-        &mut pwgs_decoder::random_scene::SplitMix64(3),
-        800,
-        2,
-        [-4.0, -2.5],
-    );
-    pwgs_decoder::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();
+    let model = pwgs_core::random::random_gaussians(&mut pwgs_core::random::SplitMix64(3), 800, 2, [-4.0, -2.5]);
+    pwgs_core::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();
     let out = pwenc(&[
         "--from-ply",
         &path("in.ply"),
@@ -157,7 +152,7 @@ fn compresses_an_imported_ply() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--output"));
 
     // `--from` takes .splat and .spz files too: the stream holds their Gaussians.
-    use pwgs_decoder::splat_file::{SpzVersion, gaussians_to_splat_bytes, gaussians_to_spz_bytes};
+    use pwgs_core::splat_file::{SpzVersion, gaussians_to_splat_bytes, gaussians_to_spz_bytes};
     std::fs::write(path("in.splat"), gaussians_to_splat_bytes(&model)).unwrap();
     std::fs::write(path("in.spz"), gaussians_to_spz_bytes(&model, SpzVersion::V3)).unwrap();
     for input in ["in.splat", "in.spz"] {
@@ -165,7 +160,7 @@ fn compresses_an_imported_ply() {
         assert!(out.status.success(), "{input}: {}", String::from_utf8_lossy(&out.stderr));
         let decoded = pwgs_decoder::stream::decode(&std::fs::read(path("other.pwb")).unwrap()).unwrap();
         let expected =
-            pwgs_decoder::splat_file::read_splat_file(std::path::Path::new(&path(input)), Default::default()).unwrap();
+            pwgs_core::splat_file::read_splat_file(std::path::Path::new(&path(input)), Default::default()).unwrap();
         assert_eq!(decoded.header.sh_degree, expected.sh_degree, "{input}");
         assert!(decoded.header.gaussian_count > 700, "{input}: {} Gaussians", decoded.header.gaussian_count);
     }
@@ -192,13 +187,8 @@ fn compresses_an_imported_ply() {
 fn a_closed_standard_output_loses_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let (model, stream) = (tmp.path().join("in.ply"), tmp.path().join("out.pwb"));
-    let g = pwgs_decoder::random_scene::random_gaussians(
-        &mut pwgs_decoder::random_scene::SplitMix64(4),
-        300,
-        0,
-        [-4.0, -2.5],
-    );
-    pwgs_decoder::ply::write_gaussians(&model, &g).unwrap();
+    let g = pwgs_core::random::random_gaussians(&mut pwgs_core::random::SplitMix64(4), 300, 0, [-4.0, -2.5]);
+    pwgs_core::ply::write_gaussians(&model, &g).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_pwenc"))
         .args(["--from", model.to_str().unwrap(), "-o", stream.to_str().unwrap()])
         .stdout(std::process::Stdio::piped())
@@ -217,9 +207,9 @@ fn compares_a_model_with_a_reference_on_an_orbit() {
     let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
     let json =
         |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(path(name)).unwrap()).unwrap() };
-    let mut rng = pwgs_decoder::random_scene::SplitMix64(8);
-    let model = pwgs_decoder::random_scene::random_gaussians(&mut rng, 600, 1, [-4.0, -2.5]);
-    pwgs_decoder::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();
+    let mut rng = pwgs_core::random::SplitMix64(8);
+    let model = pwgs_core::random::random_gaussians(&mut rng, 600, 1, [-4.0, -2.5]);
+    pwgs_core::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();
     let orbit = ["--orbit", "3", "--orbit-size", "48"];
     let import = [&["--from", &path("in.ply"), "-o", &path("s.pwb"), "--report", &path("import.json")], &orbit[..]];
     let out = pwenc(&import.concat());
@@ -239,7 +229,7 @@ fn compares_a_model_with_a_reference_on_an_orbit() {
     assert!(std::path::Path::new(&path("r/gt/orbit_002.png")).is_file());
 
     // A splat file is read as --from reads it; --size-of names the file whose size counts.
-    std::fs::write(path("in.splat"), pwgs_decoder::splat_file::gaussians_to_splat_bytes(&model)).unwrap();
+    std::fs::write(path("in.splat"), pwgs_core::splat_file::gaussians_to_splat_bytes(&model)).unwrap();
     let args = ["compare", &path("in.ply"), &path("in.splat"), "-o", &path("r2"), "--size-of", &path("in.ply")];
     let out = pwenc(&[&args[..], &["--report", &path("c2.json")], &orbit[..]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

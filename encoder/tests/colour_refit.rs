@@ -1,7 +1,7 @@
 //! `--refit-colours`: colours refitted to the quantized geometry render closer to the model on
 //! the views they were fitted on, and change nothing but the colours.
 
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_encoder::colour_refit::refit_colours;
 use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size, reconstruction};
@@ -37,14 +37,14 @@ fn refitted_colours_render_closer_with_the_same_geometry() {
         (&b.means, &b.log_scales, &b.rotations, &b.opacity_logits)
     );
     let per_gaussian = a.coeffs_per_channel() * 3;
-    let rest = |x: &pwgs_decoder::gaussians::Gaussians| -> Vec<f32> {
+    let rest = |x: &pwgs_core::gaussians::Gaussians| -> Vec<f32> {
         x.sh.chunks(per_gaussian).flat_map(|c| c[3..].to_vec()).collect()
     };
     assert_eq!(rest(a), rest(b), "only the DC terms change");
     // Three turns rounded three of every four kept Gaussians' colours to what the stream holds:
     // the stream codes exactly the refitted value (the reconstruction is in the model's order).
     let (keep, coded) = reconstruction(&refitted, coding, &context).unwrap();
-    let dc = |x: &pwgs_decoder::gaussians::Gaussians, i: usize| x.sh_of(i)[..3].to_vec();
+    let dc = |x: &pwgs_core::gaussians::Gaussians, i: usize| x.sh_of(i)[..3].to_vec();
     assert!((0..keep.len()).filter(|r| r % 4 != 3).all(|r| dc(&coded, r) == dc(&refitted, keep[r])));
     let unrounded = (3..keep.len()).step_by(4).filter(|&r| dc(&coded, r) != dc(&refitted, keep[r])).count();
     assert!(unrounded > keep.len() / 8, "the last quarter is left to the stream's quantizer: {unrounded}");

@@ -1,14 +1,14 @@
 //! The encoder's quantizer and writer: what it drops, what it keeps, how faithful the decoded
 //! stream is, and that its own reconstruction is the decoder's.
 
-use pwgs_decoder::gaussians::sh_coeff_count;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::gaussians::sh_coeff_count;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::stream;
 use pwgs_encoder::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress, compress_to_size};
 use pwgs_encoder::metrics::psnr::psnr;
 
-fn scene() -> pwgs_decoder::gaussians::Gaussians {
+fn scene() -> pwgs_core::gaussians::Gaussians {
     let mut g = random_gaussians(&mut SplitMix64(5), 3000, 3, [-4.5, -2.5]);
     let k = sh_coeff_count(3) * 3;
     for i in 0..g.len() {
@@ -46,7 +46,7 @@ fn default_stream_is_faithful_and_drops_what_the_scene_does_not_need() {
     // the largest component, far above the others (random rotations have it in a quarter).
     let rotations = &c.decoded.scene.plain_gaussians().unwrap().rotations;
     assert!(rotations.iter().all(|q| q[1..].iter().all(|c| c.abs() < 0.5 * q[0])), "a rotation off its frame");
-    let raw = pwgs_decoder::ply::inria_ply_size(&g);
+    let raw = pwgs_core::ply::inria_ply_size(&g);
     assert!(c.bytes.len() * 8 < raw, "{} bytes against {raw} as PLY", c.bytes.len());
 }
 
@@ -168,7 +168,7 @@ fn a_target_size_drops_the_least_important_gaussians() {
 /// random ones.
 #[test]
 fn grey_colours_are_coded_as_differences() {
-    let has_differences = |g: &pwgs_decoder::gaussians::Gaussians| {
+    let has_differences = |g: &pwgs_core::gaussians::Gaussians| {
         let context = StreamContext::from_gaussians(g, [0.0; 3]);
         let c = compress(g, &QuantizerSettings::default(), &context, None).unwrap();
         let container = pwgs_bitstream::Container::parse(&c.bytes).unwrap();

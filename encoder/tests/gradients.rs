@@ -5,9 +5,9 @@
 //! threshold), without which differences jump whenever a pixel crosses the threshold. The loss
 //! is a fixed random weighting of every pixel's color, so each pixel's gradient differs.
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{Cutoff, RenderOptions, rasterize};
 use pwgs_encoder::backward::backward;
 

@@ -1,9 +1,9 @@
 //! Importance classes (SPEC.md section 6.5) as the encoder uses them: weights from renders,
 //! classes from weights, and what they buy on the views the weights came from.
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::stream::Content;
 use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};

@@ -9,7 +9,7 @@ mod shared_weights;
 use std::path::PathBuf;
 
 use burn::tensor::Device;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_encoder::metrics::dists::Dists;
 use pwgs_encoder::metrics::image_tensor::image_tensor;
 

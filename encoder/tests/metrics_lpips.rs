@@ -17,7 +17,7 @@ mod shared_weights;
 use std::path::{Path, PathBuf};
 
 use burn::tensor::Device;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_encoder::metrics::image_tensor::image_tensor;
 use pwgs_encoder::metrics::lpips::{Lpips, LpipsInput};
 

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::process::Command;
 
 use burn::tensor::Device;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_encoder::metrics::image_tensor::image_tensor;
 use pwgs_encoder::metrics::psnr::psnr;
 use pwgs_encoder::metrics::ssim::{SsimConvention, ssim};

@@ -2,7 +2,7 @@
 //! SSIM gradient against central finite differences of an independent float64 SSIM.
 
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_encoder::metrics::psnr::{mse, psnr};
 use pwgs_encoder::metrics::ssim::{SsimConvention, ssim};
 

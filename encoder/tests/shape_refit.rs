@@ -3,9 +3,9 @@
 //! codes as they were, round two thirds of the shapes to their stream values, and give the colour
 //! refit a better start.
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_encoder::colour_refit::refit_colours;
 use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};

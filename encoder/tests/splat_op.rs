@@ -2,8 +2,8 @@
 //! exactly the analytic gradients of the backward pass.
 
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::{RenderOptions, Window, rasterize};
 use pwgs_encoder::backward::backward;
 use pwgs_encoder::splat_op::{SplatView, render};

@@ -1,8 +1,8 @@
 //! `--search-steps`: the per-model search of the quantizer's balance keeps the quality level's
 //! error on its views and finds fewer bytes where the model lets it.
 
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::random_scene::{SplitMix64, axis_camera, random_gaussians};
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_encoder::compress::{QuantizerSettings, StreamContext};
 use pwgs_encoder::importance::blend_weights;

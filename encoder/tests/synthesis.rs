@@ -3,10 +3,11 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use glam::Vec3;
-use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::camera::{Camera, Intrinsics};
+use pwgs_core::frame::SceneFrame;
+use pwgs_core::random::SplitMix64;
+use pwgs_decoder::wrapper::conditioning;
 use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
-use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 use pwgs_encoder::synthesis::{flat_tensor, forward};
 
 fn values(t: Tensor<4>) -> Vec<f32> {

@@ -16,7 +16,7 @@ fn small_scene(dir: &std::path::Path) -> Dataset {
     load_scene(dir, &LoadOptions::default()).unwrap()
 }
 
-fn mean_psnr(g: &pwgs_decoder::gaussians::Gaussians, data: &Dataset) -> f64 {
+fn mean_psnr(g: &pwgs_core::gaussians::Gaussians, data: &Dataset) -> f64 {
     let scene =
         Scene { base: Base::Plain(g.clone()), wrapper: None, frame: data.normalization.frame(), background: [0.0; 3] };
     MeanScore::of(&evaluate(&scene, &data.test, None, None).unwrap()).psnr
@@ -48,7 +48,7 @@ fn the_main_job_reaches_its_psnr() {
     let decoded = mean_psnr(stream.decoded.scene.plain_gaussians().unwrap(), &data);
     eprintln!("decoded stream: {decoded:.2} dB, {} bytes", stream.bytes.len());
     assert!(decoded > after - 0.6, "the stream lost {:.2} dB", after - decoded);
-    assert!(stream.bytes.len() * 8 < pwgs_decoder::ply::inria_ply_size(&model));
+    assert!(stream.bytes.len() * 8 < pwgs_core::ply::inria_ply_size(&model));
 }
 
 #[test]
@@ -85,8 +85,8 @@ fn training_resumes_from_an_exported_ply() {
     train(&mut trainer, |_, _| {}).unwrap();
     let trained = trainer.gaussians();
     let path = tmp.path().join("model.ply");
-    pwgs_decoder::ply::write_gaussians(&path, &trained).unwrap();
-    let loaded = pwgs_decoder::ply::read_gaussians(&path).unwrap().gaussians;
+    pwgs_core::ply::write_gaussians(&path, &trained).unwrap();
+    let loaded = pwgs_core::ply::read_gaussians(&path).unwrap().gaussians;
     assert_eq!(loaded, trained, "the PLY round trip is exact");
     // A resumed run starts from exactly the exported model.
     let resumed = Trainer::new(TrainConfig::for_iterations(10), &data, &loaded, Device::flex()).unwrap();

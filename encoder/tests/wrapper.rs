@@ -5,8 +5,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::stream;
 
 fn pwenc(args: &[&str]) -> std::process::Output {

@@ -3,7 +3,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pwgs_decoder::camera_json::{camera_to_json, parse_camera};
+use pwgs_core::camera_json::{camera_to_json, parse_camera};
 
 fuzz_target!(|data: &[u8]| {
     let Ok(text) = std::str::from_utf8(data) else { return };

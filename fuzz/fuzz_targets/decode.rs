@@ -9,7 +9,7 @@
 
 use glam::Vec3;
 use libfuzzer_sys::fuzz_target;
-use pwgs_decoder::camera::{Camera, Intrinsics};
+use pwgs_core::camera::{Camera, Intrinsics};
 use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
 use pwgs_decoder::stream::{self, Decoded};
 use pwgs_fuzz::reseal;

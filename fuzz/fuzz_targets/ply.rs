@@ -4,7 +4,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pwgs_decoder::ply::{gaussians_from_bytes, gaussians_to_bytes, point_cloud_from_bytes};
+use pwgs_core::ply::{gaussians_from_bytes, gaussians_to_bytes, point_cloud_from_bytes};
 
 fuzz_target!(|data: &[u8]| {
     let _ = point_cloud_from_bytes(data);

@@ -10,7 +10,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pwgs_decoder::splat_file::gaussians_from_sog_bytes;
+use pwgs_core::splat_file::gaussians_from_sog_bytes;
 
 fuzz_target!(|data: &[u8]| {
     let mut bytes = data.to_vec();

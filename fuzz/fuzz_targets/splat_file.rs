@@ -4,8 +4,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pwgs_decoder::gaussians::Gaussians;
-use pwgs_decoder::splat_file::{
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::splat_file::{
     SpzAxes, SpzVersion, gaussians_from_splat_bytes, gaussians_from_spz_bytes, gaussians_to_splat_bytes,
     gaussians_to_spz_bytes,
 };

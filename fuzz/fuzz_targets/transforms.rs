@@ -11,8 +11,8 @@ use std::sync::Once;
 
 use libfuzzer_sys::fuzz_target;
 use pwgs_dataset::{LoadOptions, load_cameras, transforms};
-use pwgs_decoder::ply::{PointCloud, point_cloud_to_bytes};
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::ply::{PointCloud, point_cloud_to_bytes};
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_fuzz::{scratch_dir, write_scratch};
 
 fn write_fixtures(dir: &Path) {

@@ -8,9 +8,9 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use eframe::egui;
-use pwgs_decoder::camera::Camera;
+use pwgs_core::camera::Camera;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_decoder::gpu::{GpuRenderer, GpuScene, StageTimes};
-use pwgs_decoder::rgb_image::RgbImage;
 
 use crate::dataset_views::DatasetViews;
 use crate::file_dialog::{Choice, FileDialog};

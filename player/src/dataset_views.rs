@@ -5,9 +5,9 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use pwgs_core::camera::Camera;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_dataset::scene::{Dataset, LoadOptions, View, load_scene};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::rgb_image::RgbImage;
 
 use crate::orbit::Orbit;
 

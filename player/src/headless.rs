@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use pwgs_decoder::camera_json::parse_camera;
+use pwgs_core::camera_json::parse_camera;
 use pwgs_decoder::gpu::{GpuRenderer, StageTimes};
 
 use crate::loaded::LoadedStream;

@@ -3,7 +3,7 @@
 //! together), starting from the stream's normalization or from a dataset camera.
 
 use glam::Vec3;
-use pwgs_decoder::camera::{Camera, CameraError, Intrinsics};
+use pwgs_core::camera::{Camera, CameraError, Intrinsics};
 use pwgs_decoder::scene::{Base, Scene};
 
 /// Steepest pitch, short of the poles where the view direction meets `up`.

@@ -1,9 +1,9 @@
 //! What the player shows of a view: the decoded image, the base alone, the wrapper's residual
 //! (amplified, since R is small), or the noise the wrapper is conditioned on.
 
-use pwgs_decoder::camera::Camera;
+use pwgs_core::camera::Camera;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_decoder::gpu::{GpuError, GpuRenderer, GpuScene, Output, StageTimes};
-use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_decoder::scene::Scene;
 use pwgs_decoder::wrapper::noise::{NOISE_LEVELS, noise_pyramid};
 

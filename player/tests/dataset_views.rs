@@ -1,8 +1,8 @@
 //! `pwplay --scene`: the dataset's cameras to snap to and the ground truth beside the render,
 //! on a generated scene.
 
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
-use pwgs_decoder::rgb_image::RgbImage;
 use pwgs_player::dataset_views::DatasetViews;
 
 #[test]

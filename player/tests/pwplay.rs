@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use pwgs_decoder::camera_json::parse_camera;
+use pwgs_core::camera_json::parse_camera;
 use pwgs_decoder::gpu::GpuRenderer;
 use pwgs_decoder::stream;
 

@@ -3,9 +3,9 @@
 //! headers around them and the cameras they are rendered from.
 
 use glam::Vec3;
-use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::gaussians::sh_coeff_count;
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::camera::{Camera, Intrinsics};
+use pwgs_core::gaussians::sh_coeff_count;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::stream::classes::ImportanceClasses;
 use pwgs_decoder::stream::header::{BaseKind, Header};
 use pwgs_decoder::stream::octree;

@@ -1,7 +1,7 @@
 //! Invalid camera files (SPEC.md annex A and decision 12): a valid camera of either form with
 //! one field broken.
 
-use pwgs_decoder::camera_json::camera_to_json;
+use pwgs_core::camera_json::camera_to_json;
 use serde_json::{Value, json};
 
 use super::Refusal;

@@ -19,7 +19,7 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail, ensure};
-use pwgs_decoder::camera_json::{camera_to_json, parse_camera};
+use pwgs_core::camera_json::{camera_to_json, parse_camera};
 use pwgs_decoder::stream;
 use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
 

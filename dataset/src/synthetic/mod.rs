@@ -16,14 +16,14 @@ mod texture;
 use std::path::Path;
 
 use glam::{Mat3, Mat4, Vec3, Vec4};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::ply::PointCloud;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::camera::Camera;
+use pwgs_core::ply::PointCloud;
+use pwgs_core::rgb_image::RgbImage;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::DatasetError;
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::random::SplitMix64;
 
 /// What to generate.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -94,12 +94,12 @@ pub fn generate(dir: &Path, options: &SyntheticOptions) -> Result<SyntheticSumma
     let ply_path = dir.join(PLY_FILE);
     let cloud = sample_points(&cameras, options.points, options.seed)
         .ok_or_else(|| DatasetError::malformed(&ply_path, "too few camera rays hit the scene to sample the points"))?;
-    let ply = pwgs_decoder::ply::point_cloud_to_bytes(&cloud);
-    pwgs_decoder::atomic_file::write_atomically(&ply_path, &ply).map_err(|e| DatasetError::io(&ply_path, e))?;
+    let ply = pwgs_core::ply::point_cloud_to_bytes(&cloud);
+    pwgs_core::atomic_file::write_atomically(&ply_path, &ply).map_err(|e| DatasetError::io(&ply_path, e))?;
     let transforms_path = dir.join("transforms.json");
     let json = serde_json::to_vec_pretty(&transforms(&cameras[0], frames))
         .map_err(|e| DatasetError::malformed(&transforms_path, e.to_string()))?;
-    pwgs_decoder::atomic_file::write_atomically(&transforms_path, &json)
+    pwgs_core::atomic_file::write_atomically(&transforms_path, &json)
         .map_err(|e| DatasetError::io(&transforms_path, e))?;
     Ok(SyntheticSummary {
         views: options.views,

@@ -1,8 +1,8 @@
 use std::path::Path;
 
 use glam::{Mat4, Vec2, Vec3};
-use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::ply::point_cloud_from_bytes;
+use pwgs_core::camera::{Camera, Intrinsics};
+use pwgs_core::ply::point_cloud_from_bytes;
 
 use super::scene::{OBJECTS, Shape, intersect};
 use super::*;

@@ -9,16 +9,16 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use pwgs_bitstream::{Container, SECTION_OVERHEAD};
+use pwgs_core::atomic_file::write_atomically;
+use pwgs_core::camera::Camera;
+use pwgs_core::camera_json::parse_camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::splat_file::{SpzVersion, gaussians_to_spz_bytes};
 use pwgs_dataset::{LoadOptions, load_cameras};
 use pwgs_decoder::anchor::AnchorModel;
 use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians, sphere_cameras};
-use pwgs_decoder::atomic_file::write_atomically;
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::camera_json::parse_camera;
-use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::splat_file::{SpzVersion, gaussians_to_spz_bytes};
 use pwgs_decoder::stream;
 use pwgs_decoder::stream::anchor_context::CONTEXT;
 use pwgs_decoder::stream::classes::CLASSES;
@@ -253,7 +253,7 @@ fn decode(args: DecodeArgs) -> Result<()> {
             }
         };
         if let Some(ply) = &args.export_ply {
-            pwgs_decoder::ply::write_gaussians(ply, gaussians)?;
+            pwgs_core::ply::write_gaussians(ply, gaussians)?;
             eprintln!("wrote {}", ply.display());
         }
         if let Some(spz) = &args.export_spz {

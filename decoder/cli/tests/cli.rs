@@ -41,7 +41,7 @@ fn renders_views_exports_ply_and_prints_info() {
     stdout(&pwdec(&[s, "--view", vector("view_opencv.json").to_str().unwrap(), "-o", png.to_str().unwrap()]));
     assert_eq!(image::open(&png).unwrap().to_rgb8(), image::open(vector("view_opencv.png")).unwrap().to_rgb8());
     stdout(&pwdec(&[s, "--export-ply", ply.to_str().unwrap()]));
-    let exported = pwgs_decoder::ply::read_gaussians(&ply).unwrap().gaussians;
+    let exported = pwgs_core::ply::read_gaussians(&ply).unwrap().gaussians;
     let decoded = pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap();
     assert_eq!(Some(&exported), decoded.scene.plain_gaussians());
     let info = stdout(&pwdec(&["info", s]));
@@ -73,7 +73,7 @@ fn a_closed_standard_output_is_not_an_error() {
 /// reads back to the same Gaussians within the format's quantization.
 #[test]
 fn exports_spz() {
-    use pwgs_decoder::splat_file::{SpzAxes, SpzVersion, gaussians_from_spz_bytes, gaussians_to_spz_bytes};
+    use pwgs_core::splat_file::{SpzAxes, SpzVersion, gaussians_from_spz_bytes, gaussians_to_spz_bytes};
     let tmp = tempfile::tempdir().unwrap();
     let stream = vector("stream.pwb");
     let spz = tmp.path().join("model.spz");
@@ -115,7 +115,7 @@ fn anchor_streams_hash_show_their_sections_and_export_standard_gaussians() {
     let out = pwdec(&[s, "--export-ply", ply.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{stderr}");
-    let exported = pwgs_decoder::ply::read_gaussians(&ply).unwrap().gaussians;
+    let exported = pwgs_core::ply::read_gaussians(&ply).unwrap().gaussians;
     assert_eq!(exported.sh_degree, 3);
     assert!(exported.len() > 100 && exported.len() <= 120 * 4, "{} Gaussians", exported.len());
     let psnr: f64 = stderr.split("PSNR ").nth(1).and_then(|t| t.split(' ').next()).unwrap().parse().unwrap();

@@ -20,7 +20,7 @@ fn conformance() -> PathBuf {
 /// The pixels of a camera file's view (0 if it does not parse: it is then refused).
 fn view_pixels(camera: &Path) -> u64 {
     let text = std::fs::read_to_string(camera).unwrap_or_default();
-    pwgs_decoder::camera_json::parse_camera(&text).map_or(0, |c| u64::from(c.width) * u64::from(c.height))
+    pwgs_core::camera_json::parse_camera(&text).map_or(0, |c| u64::from(c.width) * u64::from(c.height))
 }
 
 #[test]

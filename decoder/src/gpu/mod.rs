@@ -23,14 +23,14 @@ mod synthesis;
 
 use std::time::{Duration, Instant};
 
-use crate::camera::Camera;
 use crate::raster::opaque_tiles::{Footprint, Stops, list_ends};
 use crate::raster::tile_lists::{BinBudget, ListEnds};
 use crate::raster::{RenderOptions, Window};
-use crate::rgb_image::RgbImage;
 use crate::scene::{Base, Scene, Shown};
 use crate::wrapper::Conditioning;
 use project::DeviceGaussians;
+use pwgs_core::camera::Camera;
+use pwgs_core::rgb_image::RgbImage;
 
 /// Why the GPU renderer cannot start or render.
 #[derive(Debug, thiserror::Error)]

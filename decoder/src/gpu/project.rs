@@ -5,9 +5,9 @@
 
 use rayon::slice::ParallelSliceMut;
 
-use crate::camera::Camera;
-use crate::gaussians::{Gaussians, sh_coeff_count};
 use crate::raster::project::ProjectionSettings;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::{Gaussians, sh_coeff_count};
 
 use super::buffers::{output, read_f32, read_words, storage, uniform};
 use super::pass::{compute_pipeline, dispatch};

@@ -21,11 +21,11 @@ pub mod tiles;
 
 use rayon::prelude::*;
 
-use crate::camera::Camera;
-use crate::gaussians::Gaussians;
-use crate::rgb_image::RgbImage;
 use opaque_tiles::Stops;
 use project::{ProjectionSettings, Splat};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::rgb_image::RgbImage;
 use tile_lists::{BinBudget, ListEnds};
 use tiles::TileBins;
 

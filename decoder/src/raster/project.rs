@@ -12,9 +12,9 @@
 use glam::{DMat3, DVec3};
 
 use super::{project_f32, sh};
-use crate::camera::Camera;
-use crate::gaussians::Gaussians;
 use crate::portable_math::{exp_f64, ln_f32};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
 
 /// Constants of the projection, as gsplat and the original 3DGS use them.
 #[derive(Debug, Clone, Copy, PartialEq)]

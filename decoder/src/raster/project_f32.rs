@@ -12,9 +12,9 @@ use glam::{DMat3, DVec3, Mat3, Quat, Vec3};
 
 use super::project::{Footprint, GUARD_BAND, JACOBIAN_FOV_LIMIT, MIN_QUATERNION_NORM_SQUARED, ProjectionSettings};
 use super::sh;
-use crate::camera::Camera;
-use crate::gaussians::Gaussians;
 use crate::portable_math::exp_f32;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
 
 /// What the f32 projection found for one Gaussian.
 pub enum Outcome {

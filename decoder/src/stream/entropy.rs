@@ -438,7 +438,7 @@ impl<'a> SymbolDecoder<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::SplitMix64;
+    use pwgs_core::random::SplitMix64;
 
     #[test]
     fn tables_round_trip_values_in_and_out_of_range() {

@@ -159,7 +159,7 @@ mod tests {
     #[test]
     fn fitting_finds_the_spread_of_the_values() {
         // Roughly N(3, 4^2): 12 uniforms summed, rounded.
-        let mut rng = crate::random_scene::SplitMix64(5);
+        let mut rng = pwgs_core::random::SplitMix64(5);
         let values: Vec<i32> = (0..20_000)
             .map(|_| ((0..12).map(|_| rng.uniform(-0.5, 0.5)).sum::<f32>() * 4.0 + 3.0).round() as i32)
             .collect();

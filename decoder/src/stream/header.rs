@@ -3,10 +3,10 @@
 
 use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, MINOR_VERSION};
 
-use crate::gaussians::MAX_SH_DEGREE;
+use pwgs_core::gaussians::MAX_SH_DEGREE;
 
 /// Most Gaussians a stream may declare (a bound on what a decoder allocates).
-pub const MAX_GAUSSIANS: u32 = 1 << 24;
+pub use pwgs_core::gaussians::MAX_GAUSSIANS;
 
 /// The base representation a stream holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,8 +49,8 @@ pub struct Header {
 
 impl Header {
     /// The scene normalization as the wrapper's Plücker embeddings use it.
-    pub fn frame(&self) -> crate::wrapper::SceneFrame {
-        crate::wrapper::SceneFrame { center: glam::Vec3::from(self.center), scale: self.scale }
+    pub fn frame(&self) -> pwgs_core::frame::SceneFrame {
+        pwgs_core::frame::SceneFrame { center: glam::Vec3::from(self.center), scale: self.scale }
     }
 
     pub fn write(&self) -> Vec<u8> {

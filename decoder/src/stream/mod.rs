@@ -16,11 +16,11 @@ pub mod wrap;
 use pwgs_bitstream::{Container, FieldError, SECTION_OVERHEAD, StreamError, Tag, write_container};
 use sha2::{Digest, Sha256};
 
-use crate::gaussians::Gaussians;
 use crate::scene::{Base, Scene};
 use anchor::QuantizedAnchors;
 use header::{BaseKind, Header};
 use plain::PlainGaussians;
+use pwgs_core::gaussians::Gaussians;
 use wrap::{QuantizedSynthesis, WRAPPER};
 
 /// Why a stream could not be decoded.

@@ -188,7 +188,7 @@ pub fn decode(bytes: &[u8], depth: u8, count: usize) -> Result<Vec<[u32; 3]>, Oc
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::SplitMix64;
+    use pwgs_core::random::SplitMix64;
 
     fn random_points(n: usize, depth: u8, seed: u64) -> Vec<[u32; 3]> {
         let mut rng = SplitMix64(seed);

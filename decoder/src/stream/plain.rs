@@ -13,7 +13,7 @@ use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder,
 use super::gaussian_model::GaussianModel;
 use super::octree::{self, MAX_DEPTH, OctreeError};
 use super::trees::{self, ADAPTIVE, TreeModel, Trees};
-use crate::gaussians::{Gaussians, sh_band, sh_coeff_count};
+use pwgs_core::gaussians::{Gaussians, sh_band, sh_coeff_count};
 
 pub const POSITIONS: Tag = Tag(*b"POSN");
 pub const SCALES: Tag = Tag(*b"SCAL");

@@ -144,7 +144,7 @@ impl QuantizedSynthesis {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::SplitMix64;
+    use pwgs_core::random::SplitMix64;
 
     fn sample() -> SynthesisWeights {
         let config = WrapperConfig { width: 6, noise: true, plucker: false, seed: 0xDEAD_BEEF_0123_4567 };

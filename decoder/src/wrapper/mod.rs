@@ -7,21 +7,14 @@ mod normal_table;
 pub mod plucker;
 pub mod synthesis;
 
-use glam::Vec3;
+use pwgs_core::frame::SceneFrame;
 
-use crate::camera::Camera;
-use crate::rgb_image::RgbImage;
 use noise::{NOISE_LEVELS, NoiseGrids};
 use plucker::{PLUCKER_CHANNELS, PluckerRays};
+use pwgs_core::camera::Camera;
+use pwgs_core::rgb_image::RgbImage;
 use rayon::prelude::*;
 use synthesis::{SynthesisWeights, WrapperConfig};
-
-/// The scene normalization the Plücker moments are taken in (the stream header's).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SceneFrame {
-    pub center: Vec3,
-    pub scale: f32,
-}
 
 /// The per-pixel inputs of f after the base RGB for one view: the 8 noise levels, then the 6
 /// Plücker channels, each group only when the configuration feeds it. Produced row by row.
@@ -116,10 +109,11 @@ pub struct WrapperView<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Intrinsics;
-    use crate::random_scene::SplitMix64;
+    use glam::Vec3;
     use noise::noise_pyramid;
     use plucker::plucker_embeddings;
+    use pwgs_core::camera::Intrinsics;
+    use pwgs_core::random::SplitMix64;
 
     #[test]
     fn rows_interleave_noise_then_plucker_and_match_the_whole_image_evaluation() {

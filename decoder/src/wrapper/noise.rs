@@ -9,25 +9,12 @@
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
+use pwgs_core::random::splitmix64_at;
+
 use super::normal_table::POSITIVE_QUANTILES;
 
 /// Pyramid levels (C_0 .. C_7).
 pub const NOISE_LEVELS: usize = 8;
-
-/// The golden-ratio increment of SplitMix64.
-pub const GOLDEN: u64 = 0x9E37_79B9_7F4A_7C15;
-
-/// The SplitMix64 output function: a bijective 64-bit mixer.
-pub fn mix64(mut z: u64) -> u64 {
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// The n-th output (from 0) of SplitMix64 started at `seed`: `mix64(seed + (n + 1) * GOLDEN)`.
-pub fn splitmix64_at(seed: u64, n: u64) -> u64 {
-    mix64(seed.wrapping_add(n.wrapping_add(1).wrapping_mul(GOLDEN)))
-}
 
 /// The standard-normal value of a 64-bit random word: its top 12 bits select one of 4096
 /// equiprobable quantiles, the negative half mirroring the positive one exactly.
@@ -71,8 +58,8 @@ pub struct NoiseGrids {
 
 impl NoiseGrids {
     /// Draws the grids for a `width` x `height` image. The sample index of SPEC.md 11.1 needs
-    /// sides below 2^24; a [`Camera`](crate::camera::Camera) is at most
-    /// [`MAX_SIDE`](crate::camera::MAX_SIDE) wide, so views never come near it and the assertion
+    /// sides below 2^24; a [`Camera`](pwgs_core::camera::Camera) is at most
+    /// [`MAX_SIDE`](pwgs_core::camera::MAX_SIDE) wide, so views never come near it and the assertion
     /// only guards direct callers.
     pub fn new(seed: u64, width: usize, height: usize) -> Self {
         assert!(width > 0 && height > 0 && width < 1 << 24 && height < 1 << 24, "noise pyramid size");

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::camera::Camera;
+use pwgs_core::camera::Camera;
 
 /// Channels per pixel.
 pub const PLUCKER_CHANNELS: usize = 6;
@@ -48,7 +48,7 @@ pub fn plucker_embeddings(camera: &Camera, center: Vec3, scale: f32) -> Vec<f32>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Intrinsics;
+    use pwgs_core::camera::Intrinsics;
 
     #[test]
     fn directions_are_unit_and_moments_are_perpendicular_and_invariant_along_the_ray() {

@@ -180,7 +180,7 @@ fn residual_conv(r: &[f32], taps: &[f32; RESIDUAL_TAPS], bias: &[f32; 3], width:
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::SplitMix64;
+    use pwgs_core::random::SplitMix64;
 
     fn random_weights(config: WrapperConfig, seed: u64) -> SynthesisWeights {
         let mut rng = SplitMix64(seed);

@@ -3,17 +3,17 @@
 #![allow(dead_code, unused_imports)] // each test binary (and the benchmark) uses a different part
 
 use glam::{DMat3, DVec3};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::rgb_image::RgbImage;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::raster::sh;
-use pwgs_decoder::rgb_image::RgbImage;
 
-pub use pwgs_decoder::random_scene::{SplitMix64 as Rng, axis_camera as camera};
+pub use pwgs_core::random::{SplitMix64 as Rng, axis_camera as camera};
 
 /// Random scenes as the rasterizer tests use them: log-scales in [-4, -1.5].
 pub fn random_gaussians(rng: &mut Rng, n: usize, degree: u32) -> Gaussians {
-    pwgs_decoder::random_scene::random_gaussians(rng, n, degree, [-4.0, -1.5])
+    pwgs_core::random::random_gaussians(rng, n, degree, [-4.0, -1.5])
 }
 
 /// The naive reference renderer: for every pixel, every Gaussian, in f64, depth-sorted, no

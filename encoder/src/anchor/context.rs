@@ -8,8 +8,8 @@
 //! move during training, so each anchor's corners and weights are computed once.
 
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::context_grid::{ContextGridShape, Corner};
-use pwgs_decoder::random_scene::SplitMix64;
 
 /// Width of the context MLP's hidden layer: 32 gives about 4,900 parameters at F = 32, K = 10
 /// (a few KB in the stream against the tens of KB the context saves on fern).

@@ -17,7 +17,7 @@
 
 use std::collections::{BTreeMap, HashSet};
 
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::random::SplitMix64;
 
 use crate::train::densify::GradStats;
 

@@ -5,9 +5,9 @@
 //! anchors, every offset unmasked, and MLPs with PyTorch's default initialization.
 
 use anyhow::{Result, ensure};
+use pwgs_core::ply::PointCloud;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::anchor::{AnchorModel, Mlp};
-use pwgs_decoder::ply::PointCloud;
-use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::stream::plain::PositionGrid;
 
 use super::quantize::anchor_grid;

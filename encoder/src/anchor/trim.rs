@@ -9,9 +9,9 @@
 //! anchors the stream holds.
 
 use anyhow::{Context, Result, bail};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::anchor::AnchorModel;
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
 use pwgs_decoder::raster::project::ProjectionSettings;
 use pwgs_decoder::raster::project_visible;
 use pwgs_decoder::stream::{self, anchor::QuantizedAnchors, header::Header, wrap::QuantizedSynthesis};

@@ -11,8 +11,8 @@ mod blend_simd;
 pub mod projection;
 pub mod sh;
 
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::raster::{RenderOptions, Rendered};
 use rayon::prelude::*;
 

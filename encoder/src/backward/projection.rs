@@ -8,8 +8,8 @@
 //! normalization) and log-scales.
 
 use glam::{DMat3, DVec3};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::raster::project::{ProjectionSettings, project_detail};
 use pwgs_decoder::raster::sh;
 

@@ -8,7 +8,7 @@
 
 use std::f64::consts::SQRT_2;
 
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::gaussians::Gaussians;
 use pwgs_decoder::stream::octree::{MAX_DEPTH, MAX_POINTS_PER_VOXEL};
 use pwgs_decoder::stream::plain::PositionGrid;
 

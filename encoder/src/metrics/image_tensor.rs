@@ -1,7 +1,7 @@
 //! Images as the NCHW tensors the metrics take.
 
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 
 /// `image` as a [1, 3, H, W] tensor (planar channels) on `device`.
 pub fn image_tensor(image: &RgbImage, device: &Device) -> Tensor<4> {

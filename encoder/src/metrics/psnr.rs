@@ -1,6 +1,6 @@
 //! Peak signal-to-noise ratio for images in [0, 1].
 
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 
 /// Mean squared error over all pixels and channels, accumulated in f64.
 pub fn mse(a: &RgbImage, b: &RgbImage) -> f64 {

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use burn::tensor::{Device, Tensor};
 use clap::ValueEnum;
-use pwgs_decoder::rgb_image::RgbImage;
+use pwgs_core::rgb_image::RgbImage;
 
 use super::dists::Dists;
 use super::image_tensor::image_tensor;

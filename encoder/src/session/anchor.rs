@@ -24,8 +24,8 @@ use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::anchor::trim::fit_anchors;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
+use pwgs_core::camera::Camera;
 use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians};
-use pwgs_decoder::camera::Camera;
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::scene::Base;
 use pwgs_decoder::stream::anchor::QuantizedAnchors;
@@ -298,7 +298,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     }
     let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
     if let Some(path) = &job.output {
-        pwgs_decoder::atomic_file::write_atomically(path, &bytes)
+        pwgs_core::atomic_file::write_atomically(path, &bytes)
             .with_context(|| format!("cannot write {}", path.display()))?;
         say!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
     }
@@ -308,7 +308,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let test: Vec<Camera> = data.test.iter().map(|v| v.camera).collect();
         let checked = if test.is_empty() { &cameras[..cameras.len().min(8)] } else { &test[..] };
         let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
-        pwgs_decoder::ply::write_gaussians(path, &export)?;
+        pwgs_core::ply::write_gaussians(path, &export)?;
         say!(
             "wrote {} Gaussians (SH degree 3) to {}: PSNR {psnr:.2} dB against the anchor renders of {} views",
             export.len(),

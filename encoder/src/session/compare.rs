@@ -8,11 +8,11 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use pwgs_core::splat_file::SpzAxes;
 use pwgs_dataset::View;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream;
 use serde::Serialize;
 
@@ -65,7 +65,7 @@ pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
     let evaluation = Evaluation::prepare(&job.eval)?;
     let gaussians = read_model(&job.reference, job.spz_axes)?;
     let context = StreamContext::from_gaussians(&gaussians, job.background);
-    let frame = pwgs_decoder::wrapper::SceneFrame { center: Vec3::from(context.center), scale: context.scale };
+    let frame = pwgs_core::frame::SceneFrame { center: Vec3::from(context.center), scale: context.scale };
     let reference = Scene { base: Base::Plain(gaussians), wrapper: None, frame, background: job.background };
     let candidate = read_candidate(job, &reference)?;
     let sized = job.size_of.as_ref().unwrap_or(&job.candidate);

@@ -13,18 +13,19 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use pwgs_bitstream::Container;
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::gaussians::Gaussians;
+use pwgs_core::splat_file::SpzAxes;
 use pwgs_decoder::say;
-use pwgs_decoder::splat_file::SpzAxes;
 use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
 use crate::compress::{Coding, Compressed, QuantizerSettings, StreamContext, compress_to_size};
 use crate::synthesis::{QuantizationSample, choose_quantization};
+use pwgs_core::camera::Camera;
+use pwgs_core::frame::SceneFrame;
 use pwgs_dataset::Dataset;
-use pwgs_decoder::camera::Camera;
+use pwgs_decoder::wrapper::conditioning;
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
-use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 
 pub use anchor::{AnchorJob, AnchorReport, train_anchor_scene};
 pub use compare::{CompareJob, CompareReport, compare_models};
@@ -109,7 +110,7 @@ fn write_stream(
     let coding = Coding { settings, weights, prune_faint: options.prune_faint };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
-    pwgs_decoder::atomic_file::write_atomically(path, &compressed.bytes)
+    pwgs_core::atomic_file::write_atomically(path, &compressed.bytes)
         .with_context(|| format!("cannot write {}", path.display()))?;
     let sections = section_sizes(&compressed.bytes);
     let header = &compressed.decoded.header;
@@ -203,24 +204,24 @@ fn peak_resident_mib() -> Option<f64> {
 }
 
 fn write_report(path: &Path, report: &impl Serialize) -> Result<()> {
-    pwgs_decoder::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(report)?)
+    pwgs_core::atomic_file::write_atomically(path, &serde_json::to_vec_pretty(report)?)
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// A model trained elsewhere: an INRIA PLY (see [`read_ply`]), or antimatter15's `.splat`,
 /// Niantic's `.spz` (unmarked ones taken to store `spz_axes`) or PlayCanvas's SOG (see
-/// [`pwgs_decoder::splat_file`]), chosen by the file's extension.
+/// [`pwgs_core::splat_file`]), chosen by the file's extension.
 fn read_model(path: &Path, spz_axes: SpzAxes) -> Result<Gaussians> {
     let extension = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match extension.as_deref() {
-        Some("splat" | "spz" | "sog" | "json") => Ok(pwgs_decoder::splat_file::read_splat_file(path, spz_axes)?),
+        Some("splat" | "spz" | "sog" | "json") => Ok(pwgs_core::splat_file::read_splat_file(path, spz_axes)?),
         _ => read_ply(path),
     }
 }
 
 /// An INRIA PLY, saying how many Gaussians with non-finite values were dropped.
 fn read_ply(path: &Path) -> Result<Gaussians> {
-    let loaded = pwgs_decoder::ply::read_gaussians(path)?;
+    let loaded = pwgs_core::ply::read_gaussians(path)?;
     if loaded.dropped_non_finite + loaded.clamped_opacities > 0 {
         eprintln!(
             "{}: dropped {} Gaussians with non-finite values, clamped {} infinite opacities",
@@ -238,7 +239,7 @@ fn check_outputs<'a>(
     folders: impl IntoIterator<Item = &'a PathBuf>,
 ) -> Result<()> {
     for path in files {
-        pwgs_decoder::atomic_file::check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
+        pwgs_core::atomic_file::check_writable(path).with_context(|| format!("cannot write {}", path.display()))?;
     }
     for dir in folders {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -7,8 +7,8 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
+use pwgs_core::camera::Camera;
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::camera::Camera;
 use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_decoder::say;
 use pwgs_decoder::scene::{Base, Scene};
@@ -105,7 +105,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     // Whatever happened in training, the model holds its last good state: save it.
     let gaussians = trainer.gaussians();
     if let Some(path) = &job.export_ply {
-        pwgs_decoder::ply::write_gaussians(path, &gaussians)?;
+        pwgs_core::ply::write_gaussians(path, &gaussians)?;
         say!("wrote {} Gaussians to {}", gaussians.len(), path.display());
     }
     let training = result?;
@@ -131,7 +131,7 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
         }
         None => None,
     };
-    let ply_bytes = pwgs_decoder::ply::inria_ply_size(&gaussians);
+    let ply_bytes = pwgs_core::ply::inria_ply_size(&gaussians);
     // What is evaluated is what a decoder shows: the decoded stream when there is one, else the
     // trained model with the wrapper's dequantized weights.
     let trained;

@@ -4,8 +4,8 @@
 //! as in 3DGS.
 
 use glam::DVec3;
-use pwgs_decoder::gaussians::opacity_to_logit;
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::gaussians::opacity_to_logit;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::raster::project::{rotation_matrix, sigmoid};
 
 use super::params::{PARAM_COUNT, Rows};

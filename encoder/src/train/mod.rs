@@ -19,9 +19,9 @@ use std::time::Instant;
 
 use anyhow::{Result, bail};
 use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_core::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
+use pwgs_core::random::SplitMix64;
 use pwgs_dataset::{Dataset, View};
-use pwgs_decoder::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
-use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 
 use crate::metrics::ssim::{SsimConvention, ssim};
@@ -30,7 +30,7 @@ use crate::splat_op::{SplatView, render};
 use adam::{LearningRates, Moments};
 use densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset_opacity};
 use params::{PARAM_NAMES, SplatParams, tensor_values};
-use pwgs_decoder::wrapper::SceneFrame;
+use pwgs_core::frame::SceneFrame;
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 pub(crate) use wrapper_stage::WrapperStage;
 pub use wrapper_stage::{WdFeatures, WrapperTraining};
@@ -132,7 +132,7 @@ impl TrainConfig {
 
 /// A training view with its ground truth uploaded once.
 struct TrainView {
-    camera: pwgs_decoder::camera::Camera,
+    camera: pwgs_core::camera::Camera,
     /// [H, W, 3]
     target: Tensor<3>,
 }

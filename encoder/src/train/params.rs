@@ -2,7 +2,7 @@
 //! the number of Gaussians (densification, pruning) or inspect every value (NaN checks).
 
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_decoder::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
+use pwgs_core::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 
 /// Number of parameter tensors.
 pub const PARAM_COUNT: usize = 5;

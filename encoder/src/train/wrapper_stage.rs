@@ -16,11 +16,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::camera::Camera;
+use pwgs_core::frame::SceneFrame;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::raster::Window;
+use pwgs_decoder::wrapper::conditioning;
 use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
-use pwgs_decoder::wrapper::{SceneFrame, conditioning};
 
 use super::adam::direction;
 use crate::metrics::sigma_map::{Log2Sigma, SigmaMap};
@@ -381,7 +382,7 @@ mod tests {
     #[test]
     fn the_crop_window_gives_the_loss_of_the_whole_image() {
         use crate::train::params::tensor_values;
-        use pwgs_decoder::random_scene::axis_camera;
+        use pwgs_core::random::axis_camera;
         let (width, height) = (90, 75);
         let camera = axis_camera(width as u32, height as u32, 70.0, 70.0, 44.0, 37.0);
         let device = Device::flex();

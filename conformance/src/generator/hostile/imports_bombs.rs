@@ -7,7 +7,7 @@
 //! zip), so the bytes depend on no compressor's version, and each would decode to what it claims
 //! if a reader did not refuse it first.
 
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::random::SplitMix64;
 use serde_json::json;
 
 use super::{Hostile, HostileEntry, Outcome, Tool};
@@ -444,7 +444,7 @@ fn webp(rgba: &[u8], width: u32, height: u32) -> Vec<u8> {
 mod tests {
     use std::io::Read;
 
-    use pwgs_decoder::splat_file::{SpzAxes, gaussians_from_sog_bytes, gaussians_from_spz_bytes};
+    use pwgs_core::splat_file::{SpzAxes, gaussians_from_sog_bytes, gaussians_from_spz_bytes};
 
     use super::*;
 

@@ -8,7 +8,7 @@
 //! more than 255 Gaussians share keeps its 255 most important (the rest are dropped, with a
 //! warning); positions that no grid within binary32 reaches are refused by name.
 
-use pwgs_decoder::gaussians::Gaussians;
+use pwgs_core::gaussians::Gaussians;
 use serde_json::json;
 
 use super::imports_bombs::stored_zip;
@@ -108,7 +108,7 @@ fn hostile(file: &str, bytes: Vec<u8>, outcome: Outcome, description: &str) -> H
 }
 
 fn ply(g: &Gaussians) -> Vec<u8> {
-    pwgs_decoder::ply::gaussians_to_bytes(g)
+    pwgs_core::ply::gaussians_to_bytes(g)
 }
 
 /// `n` Gaussians at `at`, each a little larger than the one before, then one at each of

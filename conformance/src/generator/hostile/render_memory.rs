@@ -4,8 +4,8 @@
 //! resource test's memory and time.
 
 use glam::Vec3;
-use pwgs_decoder::camera::{Camera, Intrinsics};
-use pwgs_decoder::camera_json::camera_to_json;
+use pwgs_core::camera::{Camera, Intrinsics};
+use pwgs_core::camera_json::camera_to_json;
 use pwgs_decoder::context_grid::ContextGridShape;
 use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
 use pwgs_decoder::stream::anchor_context::{QuantizedContext, predicted_values};

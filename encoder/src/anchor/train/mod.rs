@@ -28,11 +28,11 @@
 use anyhow::{Result, bail};
 use burn::tensor::activation::{log_sigmoid, sigmoid};
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use pwgs_core::camera::Camera;
+use pwgs_core::gaussians::SH_C0;
+use pwgs_core::random::SplitMix64;
 use pwgs_dataset::Dataset;
 use pwgs_decoder::anchor::AnchorModel;
-use pwgs_decoder::camera::Camera;
-use pwgs_decoder::gaussians::SH_C0;
-use pwgs_decoder::random_scene::SplitMix64;
 use pwgs_decoder::raster::RenderOptions;
 use pwgs_decoder::stream::anchor_context::predicted_values;
 use pwgs_decoder::stream::plain::PositionGrid;
@@ -54,7 +54,7 @@ use crate::splat_op::{SplatView, render};
 use crate::train::adam::direction;
 use crate::train::params::tensor_values;
 use crate::train::{WrapperStage, WrapperTraining};
-use pwgs_decoder::wrapper::SceneFrame;
+use pwgs_core::frame::SceneFrame;
 use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 
 /// The trained tensors, in this order: features [N, F], scaling [N, 6], offsets [N, 3K], then

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use pwgs_decoder::random_scene::SplitMix64;
+use pwgs_core::random::SplitMix64;
 use pwgs_decoder::stream::wrap::MAX_WIDTH;
 use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};

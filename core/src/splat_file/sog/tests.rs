@@ -2,7 +2,7 @@ use std::collections::HashMap;
 use std::io::{Read, Write};
 
 use super::*;
-use crate::random_scene::{SplitMix64, random_gaussians};
+use crate::random::{SplitMix64, random_gaussians};
 use crate::splat_file::decompressed_limit;
 
 /// A lossless WebP of `n` RGBA pixels, `width` wide.

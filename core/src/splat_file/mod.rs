@@ -34,7 +34,7 @@ use crate::ply::PlyProblem;
 
 /// The most points (Gaussians) an imported file may declare: as many as one pwgs stream holds
 /// (`bitstream-spec/SPEC.md` section 9), checked before anything is decompressed or allocated.
-pub const MAX_IMPORTED_POINTS: u32 = crate::stream::header::MAX_GAUSSIANS;
+pub const MAX_IMPORTED_POINTS: u32 = crate::gaussians::MAX_GAUSSIANS;
 
 /// How many bytes of decompressed data (SPZ) or decoded pixels (SOG) one byte of input may
 /// expand to. Real splat data is quantized noise that gzip, zstd and lossless WebP shrink 1.2
@@ -154,7 +154,7 @@ pub fn read_splat_file(path: &Path, spz_axes: SpzAxes) -> Result<Gaussians, Spla
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::{SplitMix64, random_gaussians};
+    use crate::random::{SplitMix64, random_gaussians};
 
     /// The largest component difference between the unit quaternions of `a` and `b`, taking
     /// the sign that matches better: `q` and `-q` are the same rotation.

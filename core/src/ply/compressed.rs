@@ -160,7 +160,7 @@ pub(super) fn gaussians(tables: &[ElementTable], vertex: &ElementTable) -> Resul
 mod tests {
     use super::super::gaussians_from_bytes;
     use super::*;
-    use crate::random_scene::{SplitMix64, random_gaussians};
+    use crate::random::{SplitMix64, random_gaussians};
 
     /// Fraction `t` of the field's largest value, rounded, at `shift`.
     fn field(t: f64, shift: u32, bits: u32) -> u32 {

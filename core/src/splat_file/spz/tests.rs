@@ -2,7 +2,7 @@ use std::io::Read;
 
 use super::*;
 use crate::gaussians::sh_coeff_count;
-use crate::random_scene::{SplitMix64, random_gaussians};
+use crate::random::{SplitMix64, random_gaussians};
 use crate::splat_file::tests::quaternion_gap;
 
 fn gzip(raw: &[u8]) -> Vec<u8> {

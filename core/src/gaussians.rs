@@ -2,6 +2,10 @@
 //! log-scale, unnormalized rotation quaternion (w, x, y, z), opacity logit and real spherical
 //! harmonics coefficients per color channel.
 
+/// Most Gaussians a scene may hold in pwgs: what a stream may declare (SPEC.md section 9) and
+/// an imported file may hold, a bound on what a reader allocates.
+pub const MAX_GAUSSIANS: u32 = 1 << 24;
+
 /// Number of SH coefficients per channel for a degree.
 pub const fn sh_coeff_count(degree: u32) -> usize {
     ((degree + 1) * (degree + 1)) as usize

@@ -104,7 +104,7 @@ pub fn gaussians_to_splat_bytes(g: &Gaussians) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::random_scene::{SplitMix64, random_gaussians};
+    use crate::random::{SplitMix64, random_gaussians};
     use crate::splat_file::tests::quaternion_gap;
 
     fn sigmoid(x: f32) -> f32 {
