@@ -5,8 +5,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use pwgs_codec::stream;
 use pwgs_core::camera_json::parse_camera;
-use pwgs_decoder::stream;
 
 use crate::expected::{ExpectedRefusal, ExpectedRefusals};
 

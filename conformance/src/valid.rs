@@ -4,13 +4,14 @@
 //! pinned hashes (bit-exact: SPEC.md section 11), and renders each listed camera within the
 //! render tolerance (rendering is not bit-normative: docs/architecture.md section 3).
 
+use pwgs_render::show::SceneRender;
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
+use pwgs_codec::stream;
+use pwgs_codec::wrapper::noise::{noise_pyramid, pyramid_sha256};
+use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::camera_json::parse_camera;
-use pwgs_decoder::stream;
-use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
-use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 use serde::Deserialize;
 use sha2::{Digest, Sha256};
 

@@ -4,8 +4,8 @@
 
 use std::path::Path;
 
-use pwgs_decoder::stream;
-use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
+use pwgs_codec::stream;
+use pwgs_codec::stream::wrap::{QuantizedSynthesis, WRAPPER};
 
 #[test]
 fn decode_regressions_keep_the_harness_property() {

@@ -1,7 +1,7 @@
 //! Loading the real captures in `../shared/scenes` (see `shared_data` for when an absent scene
 //! skips and when it fails).
 
-#[path = "../../decoder/tests/shared_data/mod.rs"]
+#[path = "../../render/tests/shared_data/mod.rs"]
 mod shared_data;
 
 use std::path::PathBuf;

@@ -9,7 +9,7 @@
 //! pwgs-encoder --bench rasterizer` (add `-- --quick` for 10k and 100k only). Timings depend on
 //! the machine: report them with it.
 
-#[path = "../../decoder/tests/common/mod.rs"]
+#[path = "../../render/tests/common/mod.rs"]
 mod common;
 
 use std::time::Instant;
@@ -17,10 +17,10 @@ use std::time::Instant;
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::project::project_precise;
-use pwgs_decoder::raster::{BlendPath, RenderOptions, Rendered, blend_bins, project_visible, rasterize};
 use pwgs_encoder::backward::backward;
 use pwgs_encoder::backward::blend::blend_backward;
+use pwgs_render::raster::project::project_precise;
+use pwgs_render::raster::{BlendPath, RenderOptions, Rendered, blend_bins, project_visible, rasterize};
 use rayon::prelude::*;
 
 /// Median of `runs` timings of `f`, in seconds.

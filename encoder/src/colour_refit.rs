@@ -13,8 +13,8 @@
 
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::{Gaussians, SH_C0};
-use pwgs_decoder::raster::blend::ColourMap;
-use pwgs_decoder::raster::{RenderOptions, Rendered, rasterize, render};
+use pwgs_render::raster::blend::ColourMap;
+use pwgs_render::raster::{RenderOptions, Rendered, rasterize, render};
 use rayon::prelude::*;
 use serde::Serialize;
 

@@ -6,12 +6,12 @@ mod grid;
 
 use std::cmp::Ordering;
 
+use pwgs_codec::stream::header::{BaseKind, Header};
+use pwgs_codec::stream::octree::{MAX_POINTS_PER_VOXEL, OctreeError};
+use pwgs_codec::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
+use pwgs_codec::stream::{self, Decoded};
 use pwgs_core::gaussians::{Gaussians, sh_band, sh_coeff_count};
-use pwgs_decoder::stream::header::{BaseKind, Header};
-use pwgs_decoder::stream::octree::{MAX_POINTS_PER_VOXEL, OctreeError};
-use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
-use pwgs_decoder::stream::wrap::QuantizedSynthesis;
-use pwgs_decoder::stream::{self, Decoded};
 
 use crate::importance;
 use crate::rotation_frame::canonical_frame;
@@ -373,7 +373,7 @@ fn check_finite(g: &Gaussians) -> Result<(), CompressError> {
 }
 
 fn quantize_value(v: f32, step: f32) -> i32 {
-    let limit = (pwgs_decoder::stream::entropy::MAX_MAGNITUDE - 1) as f32;
+    let limit = (pwgs_codec::stream::entropy::MAX_MAGNITUDE - 1) as f32;
     (v / step).round().clamp(-limit, limit) as i32
 }
 

@@ -3,16 +3,17 @@
 //! SSIM in the 3DGS zero-padded convention that published 3DGS numbers use, and any metrics of
 //! a [`MetricSuite`]), optionally save the renders.
 
+use pwgs_render::show::SceneRender;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
 use burn::tensor::Device;
+use pwgs_codec::scene::Scene;
 use pwgs_core::rgb_image::RgbImage;
+use pwgs_core::say;
 use pwgs_dataset::View;
-use pwgs_decoder::say;
-use pwgs_decoder::scene::Scene;
 use serde::Serialize;
 
 use crate::metrics::image_tensor::image_tensor;

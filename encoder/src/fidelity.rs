@@ -3,10 +3,11 @@
 //! which come without cameras, on an orbit around the scene.
 
 use glam::Vec3;
+use pwgs_codec::scene::Scene;
 use pwgs_core::camera::{Camera, CameraError, Intrinsics};
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::scene::Scene;
+use pwgs_render::raster::RenderOptions;
+use pwgs_render::show::SceneRender;
 
 use crate::compress::StreamContext;
 

@@ -11,11 +11,11 @@
 //! are the same on every machine.
 
 use glam::Vec3;
+use pwgs_codec::stream::classes::ImportanceClasses;
 use pwgs_core::camera::{Camera, CameraError, Intrinsics};
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::raster::blend::splat_weights;
-use pwgs_decoder::raster::{RenderOptions, Window, tiles, visible_splats};
-use pwgs_decoder::stream::classes::ImportanceClasses;
+use pwgs_render::raster::blend::splat_weights;
+use pwgs_render::raster::{RenderOptions, Window, tiles, visible_splats};
 use rayon::prelude::*;
 
 use crate::compress::{StreamContext, sqrt2_power};

@@ -9,7 +9,7 @@
 //! <= w`). Coding that one takes fewer bits for the same step and the same error, and the stream
 //! format does not change: decoders see an ordinary rotation and scales.
 
-use pwgs_decoder::raster::project::rotation_matrix;
+use pwgs_render::raster::project::rotation_matrix;
 
 /// The cube's rotations as unit quaternions `(w, x, y, z)`, each once up to sign: the identity,
 /// the half turns about the axes, the thirds of a turn about the diagonals, the quarter turns

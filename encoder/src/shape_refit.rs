@@ -19,7 +19,7 @@ use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::{Gaussians, sh_band};
 use pwgs_core::random::SplitMix64;
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_decoder::raster::{RenderOptions, rasterize, render};
+use pwgs_render::raster::{RenderOptions, rasterize, render};
 use rayon::prelude::*;
 use serde::Serialize;
 

@@ -18,7 +18,7 @@ use burn::backend::{Backend, Dispatch, ExtensionType, Flex, TensorMetadata, back
 use burn::tensor::{Tensor, TensorData};
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::raster::{RenderOptions, Rendered, Window, rasterize_window};
+use pwgs_render::raster::{RenderOptions, Rendered, Window, rasterize_window};
 
 use crate::backward::{Gradients, backward};
 

@@ -18,12 +18,12 @@
 
 use std::collections::HashMap;
 
+use pwgs_codec::scene::{Base, Scene};
 use pwgs_core::camera::Camera;
 use pwgs_core::frame::SceneFrame;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::scene::{Base, Scene};
+use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
 use crate::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress_to_size, sqrt2_power};

@@ -10,9 +10,9 @@ use burn::tensor::activation::relu;
 use burn::tensor::module::conv2d;
 use burn::tensor::ops::{ConvOptions, PadMode};
 use burn::tensor::{Device, Tensor, TensorData, s};
+use pwgs_codec::stream::wrap::{MAX_EXPONENT, MIN_EXPONENT, QuantizedSynthesis};
+use pwgs_codec::wrapper::synthesis::{RESIDUAL_TAPS, SynthesisWeights, WrapperConfig};
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::stream::wrap::{MAX_EXPONENT, MIN_EXPONENT, QuantizedSynthesis};
-use pwgs_decoder::wrapper::synthesis::{RESIDUAL_TAPS, SynthesisWeights, WrapperConfig};
 
 use crate::train::params::tensor_values;
 

@@ -2,12 +2,12 @@
 //! model's Gaussians shows the scene far better than the initial model's, and its stream, as
 //! rounded, shows it almost as well as the trained model.
 
+use pwgs_codec::anchor::AnchorModel;
+use pwgs_codec::scene::{Base, Scene};
+use pwgs_codec::stream;
+use pwgs_codec::stream::plain::PositionGrid;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-use pwgs_decoder::anchor::AnchorModel;
-use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::stream;
-use pwgs_decoder::stream::plain::PositionGrid;
 use pwgs_encoder::anchor::context::{ContextLookup, context_shape};
 use pwgs_encoder::anchor::growth::GrowthSchedule;
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};

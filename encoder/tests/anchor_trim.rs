@@ -1,11 +1,11 @@
 //! `--target-bytes` on the anchor base: a trained anchor stream cut to a budget keeps the
 //! anchors that show most, fits the budget, and decodes to exactly the anchors it kept.
 
+use pwgs_codec::scene::{Base, Scene};
+use pwgs_codec::stream::{self, header::BaseKind, header::Header};
 use pwgs_core::camera::Camera;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::stream::{self, header::BaseKind, header::Header};
 use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
 use pwgs_encoder::anchor::quantize::{AnchorSteps, quantize};
 use pwgs_encoder::anchor::train::AnchorTrainer;

@@ -124,7 +124,7 @@ fn compresses_an_imported_ply() {
     assert_eq!(report["stream"]["bytes"].as_u64().unwrap(), bytes.len() as u64);
     assert_eq!(report["orbit_psnr"].as_array().unwrap().len(), 2);
     // The hash the encoder reports is that of what the decoder library decodes.
-    let decoded = pwgs_decoder::stream::decode(&bytes).unwrap();
+    let decoded = pwgs_codec::stream::decode(&bytes).unwrap();
     assert_eq!(report["stream"]["attribute_sha256"], decoded.scene.attribute_hash());
     assert_eq!(decoded.scene.plain_gaussians().unwrap().len(), 800);
     // A target size half the stream's drops Gaussians until it fits, and says so.
@@ -144,8 +144,8 @@ fn compresses_an_imported_ply() {
     assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 57 views"));
     let classes = std::fs::read(path("classes.pwb")).unwrap();
     let container = pwgs_bitstream::Container::parse(&classes).unwrap();
-    assert!(container.section(pwgs_decoder::stream::classes::CLASSES).is_some());
-    assert_eq!(pwgs_decoder::stream::decode(&classes).unwrap().scene.plain_gaussians().unwrap().len(), 800);
+    assert!(container.section(pwgs_codec::stream::classes::CLASSES).is_some());
+    assert_eq!(pwgs_codec::stream::decode(&classes).unwrap().scene.plain_gaussians().unwrap().len(), 800);
     // Without -o there is nowhere to write.
     let out = pwenc(&["--from-ply", &path("in.ply")]);
     assert!(!out.status.success());
@@ -158,7 +158,7 @@ fn compresses_an_imported_ply() {
     for input in ["in.splat", "in.spz"] {
         let out = pwenc(&["--from", &path(input), "-o", &path("other.pwb")]);
         assert!(out.status.success(), "{input}: {}", String::from_utf8_lossy(&out.stderr));
-        let decoded = pwgs_decoder::stream::decode(&std::fs::read(path("other.pwb")).unwrap()).unwrap();
+        let decoded = pwgs_codec::stream::decode(&std::fs::read(path("other.pwb")).unwrap()).unwrap();
         let expected =
             pwgs_core::splat_file::read_splat_file(std::path::Path::new(&path(input)), Default::default()).unwrap();
         assert_eq!(decoded.header.sh_degree, expected.sh_degree, "{input}");
@@ -171,7 +171,7 @@ fn compresses_an_imported_ply() {
     let center_y = |axes: &[&str]| {
         let out = pwenc(&[&["--from", &path("lifted.spz"), "-o", &path("axes.pwb")], axes].concat());
         assert!(out.status.success(), "{axes:?}: {}", String::from_utf8_lossy(&out.stderr));
-        pwgs_decoder::stream::decode(&std::fs::read(path("axes.pwb")).unwrap()).unwrap().header.center[1]
+        pwgs_codec::stream::decode(&std::fs::read(path("axes.pwb")).unwrap()).unwrap().header.center[1]
     };
     let (rub, rdf) = (center_y(&[]), center_y(&["--spz-axes", "rdf"]));
     assert!(rub > 4.0 && rdf < -4.0, "centers' y: {rub} (RUB), {rdf} (RDF)");
@@ -198,7 +198,7 @@ fn a_closed_standard_output_loses_nothing() {
     drop(child.stdout.take());
     let out = child.wait_with_output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert_eq!(pwgs_decoder::stream::decode(&std::fs::read(&stream).unwrap()).unwrap().header.gaussian_count, 300);
+    assert_eq!(pwgs_codec::stream::decode(&std::fs::read(&stream).unwrap()).unwrap().header.gaussian_count, 300);
 }
 
 #[test]

@@ -2,11 +2,11 @@
 //! the views they were fitted on, and change nothing but the colours.
 
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_encoder::colour_refit::refit_colours;
 use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size, reconstruction};
 use pwgs_encoder::importance::blend_weights;
 use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_render::raster::{RenderOptions, render};
 
 #[test]
 fn refitted_colours_render_closer_with_the_same_geometry() {

@@ -1,12 +1,12 @@
 //! The encoder's quantizer and writer: what it drops, what it keeps, how faithful the decoded
 //! stream is, and that its own reconstruction is the decoder's.
 
+use pwgs_codec::stream;
 use pwgs_core::gaussians::sh_coeff_count;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{RenderOptions, render};
-use pwgs_decoder::stream;
 use pwgs_encoder::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress, compress_to_size};
 use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_render::raster::{RenderOptions, render};
 
 fn scene() -> pwgs_core::gaussians::Gaussians {
     let mut g = random_gaussians(&mut SplitMix64(5), 3000, 3, [-4.5, -2.5]);
@@ -172,7 +172,7 @@ fn grey_colours_are_coded_as_differences() {
         let context = StreamContext::from_gaussians(g, [0.0; 3]);
         let c = compress(g, &QuantizerSettings::default(), &context, None).unwrap();
         let container = pwgs_bitstream::Container::parse(&c.bytes).unwrap();
-        container.section(pwgs_decoder::stream::colour_differences::COLOUR_DIFFERENCES).is_some()
+        container.section(pwgs_codec::stream::colour_differences::COLOUR_DIFFERENCES).is_some()
     };
     let mut g = scene();
     assert!(!has_differences(&g), "random colours");

@@ -3,8 +3,8 @@
 //! encodes, and decodes to the Gaussians the encoder says it kept, or is refused with an error
 //! naming the problem; none panics or loops.
 
+use pwgs_codec::stream;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::stream;
 use pwgs_encoder::compress::{
     Coding, CompressError, Compressed, QuantizerSettings, StreamContext, compress, reconstruction,
 };

@@ -2,7 +2,7 @@
 //! report, agreeing with `pweval` on the saved renders. Needs the metric weights (see
 //! `shared_weights` for when their absence skips).
 
-#[path = "../../decoder/tests/shared_data/mod.rs"]
+#[path = "../../render/tests/shared_data/mod.rs"]
 mod shared_data;
 mod shared_weights;
 

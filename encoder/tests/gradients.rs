@@ -8,8 +8,8 @@
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{Cutoff, RenderOptions, rasterize};
 use pwgs_encoder::backward::backward;
+use pwgs_render::raster::{Cutoff, RenderOptions, rasterize};
 
 struct Case {
     name: &'static str,
@@ -162,8 +162,8 @@ fn near_camera_gaussians() {
 /// saturated pixels.
 #[test]
 fn vectorized_backward_matches_the_scalar_walk() {
-    use pwgs_decoder::raster::BlendPath;
     use pwgs_encoder::backward::blend::blend_backward;
+    use pwgs_render::raster::BlendPath;
     for (seed, n, (w, h), cutoff) in
         [(31u64, 400, (64, 48), Cutoff::Hard), (32, 1500, (53, 37), Cutoff::Smooth), (33, 80, (17, 30), Cutoff::Hard)]
     {

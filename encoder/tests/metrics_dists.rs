@@ -2,7 +2,7 @@
 //! calibration pairs and the DISTS authors' r0/r1 example. Needs the weights and the
 //! calibration images (see `shared_weights` and `shared_data` for when their absence skips).
 
-#[path = "../../decoder/tests/shared_data/mod.rs"]
+#[path = "../../render/tests/shared_data/mod.rs"]
 mod shared_data;
 mod shared_weights;
 

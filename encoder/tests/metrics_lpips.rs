@@ -10,7 +10,7 @@
 //! the 3DGS one; printed to 6 decimals. Needs the weights and the calibration images (see
 //! `shared_weights` and `shared_data` for when their absence skips).
 
-#[path = "../../decoder/tests/shared_data/mod.rs"]
+#[path = "../../render/tests/shared_data/mod.rs"]
 mod shared_data;
 mod shared_weights;
 

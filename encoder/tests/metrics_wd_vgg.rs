@@ -3,7 +3,7 @@
 //! forward+backward pass at 504x378. Needs the weights (see `shared_weights` for when their
 //! absence skips).
 
-#[path = "../../decoder/tests/shared_data/mod.rs"]
+#[path = "../../render/tests/shared_data/mod.rs"]
 mod shared_data;
 mod shared_weights;
 

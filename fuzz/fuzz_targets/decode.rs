@@ -7,11 +7,12 @@
 //! render (through the wrapper when there is one) to finite pixels.
 #![no_main]
 
+use pwgs_render::show::SceneRender;
 use glam::Vec3;
 use libfuzzer_sys::fuzz_target;
 use pwgs_core::camera::{Camera, Intrinsics};
-use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
-use pwgs_decoder::stream::{self, Decoded};
+use pwgs_codec::stream::wrap::{QuantizedSynthesis, WRAPPER};
+use pwgs_codec::stream::{self, Decoded};
 use pwgs_fuzz::reseal;
 
 fuzz_target!(|data: &[u8]| {

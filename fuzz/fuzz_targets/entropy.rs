@@ -11,7 +11,7 @@
 
 use libfuzzer_sys::fuzz_target;
 use pwgs_bitstream::FieldReader;
-use pwgs_decoder::stream::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
+use pwgs_codec::stream::entropy::{BitContext, EntropyError, FrequencyTable, SymbolDecoder, SymbolEncoder};
 
 const MAX_SYMBOLS: u32 = 1 << 16;
 

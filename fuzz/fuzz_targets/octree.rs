@@ -7,7 +7,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pwgs_decoder::stream::octree::{self, MAX_DEPTH};
+use pwgs_codec::stream::octree::{self, MAX_DEPTH};
 
 const MAX_POINTS: usize = 4096;
 

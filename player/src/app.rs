@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use eframe::egui;
 use pwgs_core::camera::Camera;
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_decoder::gpu::{GpuRenderer, GpuScene, StageTimes};
+use pwgs_render::gpu::{GpuRenderer, GpuScene, StageTimes};
 
 use crate::dataset_views::DatasetViews;
 use crate::file_dialog::{Choice, FileDialog};

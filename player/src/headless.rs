@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use pwgs_core::camera_json::parse_camera;
-use pwgs_decoder::gpu::{GpuRenderer, StageTimes};
+use pwgs_render::gpu::{GpuRenderer, StageTimes};
 
 use crate::loaded::LoadedStream;
 use crate::view_mode::{ViewMode, picture};

@@ -1,5 +1,5 @@
 //! pwplay, the interactive player of pwgs streams: the decoder's GPU renderer
-//! ([`pwgs_decoder::gpu`]) in an eframe/egui window on the same wgpu device, and a headless
+//! ([`pwgs_render::gpu`]) in an eframe/egui window on the same wgpu device, and a headless
 //! mode through the same path. No codec logic lives here: decoding, rendering and the wrapper
 //! are the decoder library's.
 

@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use pwgs_decoder::scene::Scene;
-use pwgs_decoder::stream::{self, header::Header, section_sizes};
+use pwgs_codec::scene::Scene;
+use pwgs_codec::stream::{self, header::Header, section_sizes};
 
 /// A decoded stream.
 pub struct LoadedStream {

@@ -3,8 +3,8 @@
 //! together), starting from the stream's normalization or from a dataset camera.
 
 use glam::Vec3;
+use pwgs_codec::scene::{Base, Scene};
 use pwgs_core::camera::{Camera, CameraError, Intrinsics};
-use pwgs_decoder::scene::{Base, Scene};
 
 /// Steepest pitch, short of the poles where the view direction meets `up`.
 const MAX_PITCH: f32 = 1.55;

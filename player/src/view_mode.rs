@@ -1,11 +1,12 @@
 //! What the player shows of a view: the decoded image, the base alone, the wrapper's residual
 //! (amplified, since R is small), or the noise the wrapper is conditioned on.
 
+use pwgs_codec::scene::Scene;
+use pwgs_codec::wrapper::noise::{NOISE_LEVELS, noise_pyramid};
 use pwgs_core::camera::Camera;
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_decoder::gpu::{GpuError, GpuRenderer, GpuScene, Output, StageTimes};
-use pwgs_decoder::scene::Scene;
-use pwgs_decoder::wrapper::noise::{NOISE_LEVELS, noise_pyramid};
+use pwgs_render::gpu::{GpuError, GpuRenderer, GpuScene, Output, StageTimes};
+use pwgs_render::show::SceneRender;
 
 /// One of the player's pictures.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

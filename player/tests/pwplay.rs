@@ -3,13 +3,14 @@
 //! the scene. Without a GPU adapter (or Xvfb, for the window) these tests skip, saying so,
 //! unless `PWGS_REQUIRE_GPU` is set (CI installs lavapipe and Xvfb and sets it).
 
+use pwgs_render::show::SceneRender;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use pwgs_codec::stream;
 use pwgs_core::camera_json::parse_camera;
-use pwgs_decoder::gpu::GpuRenderer;
-use pwgs_decoder::stream;
+use pwgs_render::gpu::GpuRenderer;
 
 fn required() -> bool {
     std::env::var_os("PWGS_REQUIRE_GPU").is_some()

@@ -3,12 +3,12 @@
 //! break its syntax.
 
 use pwgs_bitstream::{Container, Tag, reseal, write_container};
-use pwgs_decoder::context_grid::ContextGridShape;
-use pwgs_decoder::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
-use pwgs_decoder::stream::anchor_context::{self, QuantizedContext};
-use pwgs_decoder::stream::header::{BaseKind, Header};
-use pwgs_decoder::stream::plain::PositionGrid;
-use pwgs_decoder::stream::{self, PADDING};
+use pwgs_codec::context_grid::ContextGridShape;
+use pwgs_codec::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
+use pwgs_codec::stream::anchor_context::{self, QuantizedContext};
+use pwgs_codec::stream::header::{BaseKind, Header};
+use pwgs_codec::stream::plain::PositionGrid;
+use pwgs_codec::stream::{self, PADDING};
 
 use super::content::Draws;
 use super::{Refusal, Vector};

@@ -3,15 +3,15 @@
 //! headers around them and the cameras they are rendered from.
 
 use glam::Vec3;
+use pwgs_codec::stream::classes::ImportanceClasses;
+use pwgs_codec::stream::header::{BaseKind, Header};
+use pwgs_codec::stream::octree;
+use pwgs_codec::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
+use pwgs_codec::wrapper::synthesis::{RESIDUAL_TAPS, WrapperConfig};
 use pwgs_core::camera::{Camera, Intrinsics};
 use pwgs_core::gaussians::sh_coeff_count;
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::stream::classes::ImportanceClasses;
-use pwgs_decoder::stream::header::{BaseKind, Header};
-use pwgs_decoder::stream::octree;
-use pwgs_decoder::stream::plain::{PlainGaussians, PositionGrid, QuantizedRotation};
-use pwgs_decoder::stream::wrap::QuantizedSynthesis;
-use pwgs_decoder::wrapper::synthesis::{RESIDUAL_TAPS, WrapperConfig};
 
 /// Integer draws from SplitMix64.
 pub struct Draws(SplitMix64);

@@ -14,14 +14,15 @@ mod invalid_streams;
 pub mod raw;
 mod valid_vectors;
 
+use pwgs_render::show::SceneRender;
 use std::collections::BTreeMap;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail, ensure};
+use pwgs_codec::stream;
+use pwgs_codec::wrapper::noise::{noise_pyramid, pyramid_sha256};
 use pwgs_core::camera_json::{camera_to_json, parse_camera};
-use pwgs_decoder::stream;
-use pwgs_decoder::wrapper::noise::{noise_pyramid, pyramid_sha256};
 
 use crate::expected::{ExpectedRefusal, ExpectedRefusals, ExpectedRender, ExpectedVector};
 use crate::invalid::EXPECTED_FILE;

@@ -9,7 +9,7 @@ use constriction::stream::Encode;
 use constriction::stream::model::{EncoderModel, EntropyModel};
 use constriction::stream::queue::DefaultRangeEncoder;
 use pwgs_bitstream::{Container, FieldReader, FieldWriter, MAGIC, Tag};
-use pwgs_decoder::stream::entropy::{FrequencyTable, PRECISION, SymbolEncoder, TOTAL};
+use pwgs_codec::stream::entropy::{FrequencyTable, PRECISION, SymbolEncoder, TOTAL};
 
 /// A stream as its version and sections (`END ` left out), to edit and seal again.
 #[derive(Debug, Clone, PartialEq)]

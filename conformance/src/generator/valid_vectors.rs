@@ -3,12 +3,12 @@
 
 use anyhow::{Result, ensure};
 use pwgs_bitstream::{FieldWriter, Tag, write_container};
-use pwgs_decoder::stream;
-use pwgs_decoder::stream::entropy::{FrequencyTable, MAX_MAGNITUDE};
-use pwgs_decoder::stream::plain::{self, PlainGaussians, PositionGrid};
-use pwgs_decoder::stream::trees::ADAPTIVE;
-use pwgs_decoder::stream::wrap::{QuantizedSynthesis, WRAPPER};
-use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+use pwgs_codec::stream;
+use pwgs_codec::stream::entropy::{FrequencyTable, MAX_MAGNITUDE};
+use pwgs_codec::stream::plain::{self, PlainGaussians, PositionGrid};
+use pwgs_codec::stream::trees::ADAPTIVE;
+use pwgs_codec::stream::wrap::{QuantizedSynthesis, WRAPPER};
+use pwgs_codec::wrapper::synthesis::WrapperConfig;
 
 use super::Vector;
 use super::content::{self, BlockValues, Draws, Ranges, Steps, classed_gaussians, header, ordinary_gaussians, smooth};

@@ -1,5 +1,5 @@
 //! The training side of the anchors' context model (HAC's hash-grid context): a
-//! binary context grid ([`pwgs_decoder::context_grid`]) and an MLP that maps each anchor's
+//! binary context grid ([`pwgs_codec::context_grid`]) and an MLP that maps each anchor's
 //! context to the mean and log scale of every one of its stored values, replacing the
 //! factorized model's one mean and scale per channel.
 //!
@@ -8,8 +8,8 @@
 //! move during training, so each anchor's corners and weights are computed once.
 
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use pwgs_codec::context_grid::{ContextGridShape, Corner};
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::context_grid::{ContextGridShape, Corner};
 
 /// Width of the context MLP's hidden layer: 32 gives about 4,900 parameters at F = 32, K = 10
 /// (a few KB in the stream against the tens of KB the context saves on fern).

@@ -3,7 +3,7 @@
 //! are grown and pruned.
 
 use burn::tensor::{Device, Tensor, TensorData};
-use pwgs_decoder::anchor::Mlp;
+use pwgs_codec::anchor::Mlp;
 
 use crate::train::params::tensor_values;
 

@@ -5,10 +5,10 @@
 //! anchors, every offset unmasked, and MLPs with PyTorch's default initialization.
 
 use anyhow::{Result, ensure};
+use pwgs_codec::anchor::{AnchorModel, Mlp};
+use pwgs_codec::stream::plain::PositionGrid;
 use pwgs_core::ply::PointCloud;
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::anchor::{AnchorModel, Mlp};
-use pwgs_decoder::stream::plain::PositionGrid;
 
 use super::quantize::anchor_grid;
 use crate::init::gaussians_from_points;

@@ -3,7 +3,7 @@
 //! ([`growth`]) and the stream content of a trained
 //! model ([`quantize`]), with its networks' steps chosen after training ([`network_steps`]) and, for a byte budget, its
 //! least important anchors dropped ([`trim`]). The model itself, and how it turns into each view's Gaussians, is the
-//! decoder's [`pwgs_decoder::anchor`].
+//! decoder's [`pwgs_codec::anchor`].
 
 pub mod context;
 pub mod growth;

@@ -14,12 +14,12 @@ use std::ops::RangeInclusive;
 
 use anyhow::Result;
 use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_codec::anchor::Mlp;
+use pwgs_codec::stream::anchor::{QuantizedAnchors, QuantizedMlp};
+use pwgs_codec::stream::header::Header;
+use pwgs_codec::stream::{self};
 use pwgs_dataset::scene::View;
-use pwgs_decoder::anchor::Mlp;
-use pwgs_decoder::raster::{RenderOptions, render};
-use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
-use pwgs_decoder::stream::header::Header;
-use pwgs_decoder::stream::{self};
+use pwgs_render::raster::{RenderOptions, render};
 
 use super::train::pixel_loss;
 

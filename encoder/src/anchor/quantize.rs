@@ -4,12 +4,12 @@
 //! result is the model every view is rendered from, so evaluation always goes through it.
 
 use anyhow::{Result, bail, ensure};
-use pwgs_decoder::anchor::{AnchorModel, Mlp};
-use pwgs_decoder::context_grid::ContextGridShape;
-use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
-use pwgs_decoder::stream::anchor_context::QuantizedContext;
-use pwgs_decoder::stream::octree::MAX_DEPTH;
-use pwgs_decoder::stream::plain::PositionGrid;
+use pwgs_codec::anchor::{AnchorModel, Mlp};
+use pwgs_codec::context_grid::ContextGridShape;
+use pwgs_codec::stream::anchor::{QuantizedAnchors, QuantizedMlp};
+use pwgs_codec::stream::anchor_context::QuantizedContext;
+use pwgs_codec::stream::octree::MAX_DEPTH;
+use pwgs_codec::stream::plain::PositionGrid;
 
 use super::context::CONTEXT_STEP_EXPONENT;
 
@@ -168,7 +168,7 @@ mod tests {
     #[test]
     fn shut_masks_drop_offsets_and_anchors() {
         let (grid, q) = anchor_grid(&[[0, 0, 0], [1, 0, 0], [0, 1, 0]], 0.5).unwrap();
-        let mlp = |outputs| pwgs_decoder::anchor::Mlp {
+        let mlp = |outputs| pwgs_codec::anchor::Mlp {
             inputs: 5,
             hidden: 2,
             outputs,

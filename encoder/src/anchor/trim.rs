@@ -9,12 +9,12 @@
 //! anchors the stream holds.
 
 use anyhow::{Context, Result, bail};
+use pwgs_codec::anchor::AnchorModel;
+use pwgs_codec::stream::{self, anchor::QuantizedAnchors, header::Header, wrap::QuantizedSynthesis};
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::anchor::AnchorModel;
-use pwgs_decoder::raster::project::ProjectionSettings;
-use pwgs_decoder::raster::project_visible;
-use pwgs_decoder::stream::{self, anchor::QuantizedAnchors, header::Header, wrap::QuantizedSynthesis};
+use pwgs_render::raster::project::ProjectionSettings;
+use pwgs_render::raster::project_visible;
 
 use crate::size_fit::{Fit, most_important_fitting};
 

@@ -7,11 +7,11 @@
 //! gradients into its own slice, and the per-splat sums are then taken in a fixed tile order,
 //! so the result does not depend on the number of threads.
 
-use pwgs_decoder::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
-use pwgs_decoder::raster::lanes::prefetch;
-use pwgs_decoder::raster::project::Splat;
-use pwgs_decoder::raster::tiles::ListOrder;
-use pwgs_decoder::raster::{BlendPath, Cutoff, RenderOptions, Rendered};
+use pwgs_render::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
+use pwgs_render::raster::lanes::prefetch;
+use pwgs_render::raster::project::Splat;
+use pwgs_render::raster::tiles::ListOrder;
+use pwgs_render::raster::{BlendPath, Cutoff, RenderOptions, Rendered};
 use rayon::prelude::*;
 
 /// Gradient of the loss with respect to one splat's screen-space parameters.

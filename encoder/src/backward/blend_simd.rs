@@ -1,5 +1,5 @@
 //! The backward walk through a tile four pixels at a time (f64 lanes: AVX2 registers where the
-//! CPU has them, else `wide::f64x4`, see [`pwgs_decoder::raster::lanes`]): per pixel the same
+//! CPU has them, else `wide::f64x4`, see [`pwgs_render::raster::lanes`]): per pixel the same
 //! f64 operations as the scalar walk in [`super::blend`], lane by lane; each splat's
 //! gradient is summed per lane and the four lane sums are added at the end in a fixed order, so
 //! it differs from the scalar sum only by rounding (the tests bound it) and does not depend
@@ -11,11 +11,11 @@
 //! start at the box's first column, over per-pixel state in rows of 16 (plus a chunk's worth
 //! of padding): one chunk for most splats' rows, where a fixed grid of chunks cuts many in two.
 
-use pwgs_decoder::raster::alpha_lanes::{LANES as CHUNK, SplatRows, box_lanes, chunk_dx};
-use pwgs_decoder::raster::blend::SMOOTH_CUTOFF_BAND;
-use pwgs_decoder::raster::lanes::{LaneKernel, Lanes4d, run_kernel};
-use pwgs_decoder::raster::tiles::ListOrder;
-use pwgs_decoder::raster::{Cutoff, RenderOptions, Rendered, TILE_SIZE};
+use pwgs_render::raster::alpha_lanes::{LANES as CHUNK, SplatRows, box_lanes, chunk_dx};
+use pwgs_render::raster::blend::SMOOTH_CUTOFF_BAND;
+use pwgs_render::raster::lanes::{LaneKernel, Lanes4d, run_kernel};
+use pwgs_render::raster::tiles::ListOrder;
+use pwgs_render::raster::{Cutoff, RenderOptions, Rendered, TILE_SIZE};
 
 use super::blend::{EntryGrad, SplatGrad};
 

@@ -13,7 +13,7 @@ pub mod sh;
 
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::raster::{RenderOptions, Rendered};
+use pwgs_render::raster::{RenderOptions, Rendered};
 use rayon::prelude::*;
 
 /// Gradients with respect to every parameter of a Gaussian set, laid out like [`Gaussians`].

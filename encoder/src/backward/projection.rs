@@ -10,8 +10,8 @@
 use glam::{DMat3, DVec3};
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::raster::project::{ProjectionSettings, project_detail};
-use pwgs_decoder::raster::sh;
+use pwgs_render::raster::project::{ProjectionSettings, project_detail};
+use pwgs_render::raster::sh;
 
 use super::blend::SplatGrad;
 use super::sh::basis_gradient;

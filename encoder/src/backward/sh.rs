@@ -1,8 +1,8 @@
 //! Derivatives of the SH basis with respect to the (unit) viewing direction, for the gradient
 //! that flows from color through the view direction into the Gaussian's mean. The basis itself
-//! is the decoder's ([`pwgs_decoder::raster::sh::basis`]).
+//! is the decoder's ([`pwgs_render::raster::sh::basis`]).
 
-use pwgs_decoder::raster::sh::{C1, C2, C3};
+use pwgs_render::raster::sh::{C1, C2, C3};
 
 /// d basis_k / d(x, y, z) for the first `(degree + 1)^2` basis functions, treating the
 /// direction's components as independent (the caller projects out the radial part).
@@ -37,7 +37,7 @@ pub fn basis_gradient(degree: u32, d: [f64; 3]) -> [[f64; 3]; 16] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use pwgs_decoder::raster::sh::basis;
+    use pwgs_render::raster::sh::basis;
 
     #[test]
     fn matches_finite_differences_of_the_basis() {

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result, bail};
 use clap::Parser;
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_decoder::say;
+use pwgs_core::say;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, MetricSuite, SuiteSettings};
 use pwgs_encoder::metrics::weights::default_dirs;

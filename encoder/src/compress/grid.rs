@@ -8,9 +8,9 @@
 
 use std::f64::consts::SQRT_2;
 
+use pwgs_codec::stream::octree::{MAX_DEPTH, MAX_POINTS_PER_VOXEL};
+use pwgs_codec::stream::plain::PositionGrid;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_decoder::stream::octree::{MAX_DEPTH, MAX_POINTS_PER_VOXEL};
-use pwgs_decoder::stream::plain::PositionGrid;
 
 use super::CompressError;
 

@@ -2,14 +2,15 @@
 //! with `--wrapper`, stage 2 with the perceptual wrapper), quantizes it into an anchor stream
 //! (SPEC.md section 12), decodes that stream and evaluates what a decoder shows.
 
+use pwgs_render::show::SceneRender;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use pwgs_codec::stream::header::{BaseKind, Header};
+use pwgs_codec::stream::{self, Decoded};
+use pwgs_core::say;
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::say;
-use pwgs_decoder::stream::header::{BaseKind, Header};
-use pwgs_decoder::stream::{self, Decoded};
 use serde::Serialize;
 
 use super::{
@@ -24,12 +25,12 @@ use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::anchor::trim::fit_anchors;
 use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::train::WrapperTraining;
+use pwgs_codec::scene::Base;
+use pwgs_codec::stream::anchor::QuantizedAnchors;
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
 use pwgs_core::camera::Camera;
-use pwgs_decoder::anchor_export::{agreement_psnr, export_gaussians};
-use pwgs_decoder::raster::{RenderOptions, render};
-use pwgs_decoder::scene::Base;
-use pwgs_decoder::stream::anchor::QuantizedAnchors;
-use pwgs_decoder::stream::wrap::QuantizedSynthesis;
+use pwgs_render::anchor_export::{agreement_psnr, export_gaussians};
+use pwgs_render::raster::{RenderOptions, render};
 
 /// An anchor training run.
 #[derive(Debug, Clone)]

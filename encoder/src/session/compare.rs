@@ -8,12 +8,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use pwgs_codec::scene::{Base, Scene};
+use pwgs_codec::stream;
+use pwgs_core::say;
 use pwgs_core::splat_file::SpzAxes;
 use pwgs_dataset::View;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::say;
-use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::stream;
+use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
 use super::{Orbit, check_outputs, read_model, write_report};

@@ -6,11 +6,11 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use pwgs_codec::scene::{Base, Scene};
 use pwgs_core::gaussians::Gaussians;
+use pwgs_core::say;
 use pwgs_core::splat_file::SpzAxes;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::say;
-use pwgs_decoder::scene::{Base, Scene};
+use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};

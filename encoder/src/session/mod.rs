@@ -13,19 +13,19 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use pwgs_bitstream::Container;
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
 use pwgs_core::gaussians::Gaussians;
+use pwgs_core::say;
 use pwgs_core::splat_file::SpzAxes;
-use pwgs_decoder::say;
-use pwgs_decoder::stream::wrap::QuantizedSynthesis;
 use serde::Serialize;
 
 use crate::compress::{Coding, Compressed, QuantizerSettings, StreamContext, compress_to_size};
 use crate::synthesis::{QuantizationSample, choose_quantization};
+use pwgs_codec::wrapper::conditioning;
+use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::camera::Camera;
 use pwgs_core::frame::SceneFrame;
 use pwgs_dataset::Dataset;
-use pwgs_decoder::wrapper::conditioning;
-use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 
 pub use anchor::{AnchorJob, AnchorReport, train_anchor_scene};
 pub use compare::{CompareJob, CompareReport, compare_models};
@@ -158,7 +158,7 @@ fn write_stream(
 
 /// Each section's tag and its bytes in the stream, header and CRC included.
 fn section_sizes(stream: &[u8]) -> Vec<(String, usize)> {
-    pwgs_decoder::stream::section_sizes(&Container::parse(stream).expect("the encoder's own stream parses"))
+    pwgs_codec::stream::section_sizes(&Container::parse(stream).expect("the encoder's own stream parses"))
 }
 
 /// Quantizes f with steps chosen on renders of the first training views (`base_render` gives

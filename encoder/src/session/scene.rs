@@ -7,12 +7,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
+use pwgs_codec::scene::{Base, Scene};
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
 use pwgs_core::camera::Camera;
+use pwgs_core::say;
 use pwgs_dataset::{LoadOptions, load_scene};
-use pwgs_decoder::raster::{RenderOptions, render};
-use pwgs_decoder::say;
-use pwgs_decoder::scene::{Base, Scene};
-use pwgs_decoder::stream::wrap::QuantizedSynthesis;
+use pwgs_render::raster::{RenderOptions, render};
 use serde::Serialize;
 
 use super::{

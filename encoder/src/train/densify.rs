@@ -6,7 +6,7 @@
 use glam::DVec3;
 use pwgs_core::gaussians::opacity_to_logit;
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::raster::project::{rotation_matrix, sigmoid};
+use pwgs_render::raster::project::{rotation_matrix, sigmoid};
 
 use super::params::{PARAM_COUNT, Rows};
 

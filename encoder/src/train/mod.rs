@@ -22,7 +22,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_core::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 use pwgs_core::random::SplitMix64;
 use pwgs_dataset::{Dataset, View};
-use pwgs_decoder::raster::RenderOptions;
+use pwgs_render::raster::RenderOptions;
 
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::metrics::vgg_wasserstein::VggWasserstein;
@@ -30,8 +30,8 @@ use crate::splat_op::{SplatView, render};
 use adam::{LearningRates, Moments};
 use densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset_opacity};
 use params::{PARAM_NAMES, SplatParams, tensor_values};
+use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::frame::SceneFrame;
-use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 pub(crate) use wrapper_stage::WrapperStage;
 pub use wrapper_stage::{WdFeatures, WrapperTraining};
 

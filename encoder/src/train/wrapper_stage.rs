@@ -16,12 +16,12 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_codec::wrapper::conditioning;
+use pwgs_codec::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
 use pwgs_core::camera::Camera;
 use pwgs_core::frame::SceneFrame;
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::raster::Window;
-use pwgs_decoder::wrapper::conditioning;
-use pwgs_decoder::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
+use pwgs_render::raster::Window;
 
 use super::adam::direction;
 use crate::metrics::sigma_map::{Log2Sigma, SigmaMap};

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{Result, bail};
 use clap::Parser;
-use pwgs_decoder::cli_values::parse_vector;
+use pwgs_core::cli_values::parse_vector;
 use pwgs_player::app::{PlayerOptions, run};
 use pwgs_player::headless::screenshot;
 use pwgs_player::view_mode::ViewMode;

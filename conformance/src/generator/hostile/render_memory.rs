@@ -4,13 +4,13 @@
 //! resource test's memory and time.
 
 use glam::Vec3;
+use pwgs_codec::context_grid::ContextGridShape;
+use pwgs_codec::stream::anchor::{QuantizedAnchors, QuantizedMlp};
+use pwgs_codec::stream::anchor_context::{QuantizedContext, predicted_values};
+use pwgs_codec::stream::plain::PositionGrid;
+use pwgs_codec::stream::{self, Content};
 use pwgs_core::camera::{Camera, Intrinsics};
 use pwgs_core::camera_json::camera_to_json;
-use pwgs_decoder::context_grid::ContextGridShape;
-use pwgs_decoder::stream::anchor::{QuantizedAnchors, QuantizedMlp};
-use pwgs_decoder::stream::anchor_context::{QuantizedContext, predicted_values};
-use pwgs_decoder::stream::plain::PositionGrid;
-use pwgs_decoder::stream::{self, Content};
 
 use super::super::content::{Draws, gaussians, header, ordinary, unit_cube};
 use super::{Hostile, HostileEntry, Outcome, Tool};

@@ -2,7 +2,7 @@
 //! class step that overflows, a chunk that ends early or holds too much, and `IMPC` in an
 //! anchor stream.
 
-use pwgs_decoder::stream::classes::CLASSES;
+use pwgs_codec::stream::classes::CLASSES;
 
 use super::{Cases, edit, put};
 use crate::generator::anchor_vectors::{self, synthetic_anchors};

@@ -1,7 +1,7 @@
 //! Invalid coded chunks and frequency tables.
 
-use pwgs_decoder::stream::entropy::{MAX_MAGNITUDE, TOTAL};
-use pwgs_decoder::stream::plain::{COLORS, OPACITIES, POSITIONS, ROTATIONS, SCALES};
+use pwgs_codec::stream::entropy::{MAX_MAGNITUDE, TOTAL};
+use pwgs_codec::stream::plain::{COLORS, OPACITIES, POSITIONS, ROTATIONS, SCALES};
 
 use super::{Bases, Cases, edit, edit_block};
 use crate::generator::raw::{

@@ -1,9 +1,9 @@
 //! Invalid containers, field syntax, HEAD fields and counts beyond the work bound.
 
 use pwgs_bitstream::{FieldReader, FieldWriter, MAGIC, SECTION_OVERHEAD, Tag};
-use pwgs_decoder::stream::PADDING;
-use pwgs_decoder::stream::plain::{POSITIONS, PlainGaussians, SCALES};
-use pwgs_decoder::stream::wrap::WRAPPER;
+use pwgs_codec::stream::PADDING;
+use pwgs_codec::stream::plain::{POSITIONS, PlainGaussians, SCALES};
+use pwgs_codec::stream::wrap::WRAPPER;
 
 use super::{Bases, Cases, edit, edit_block, head, posn, put, unknown_critical};
 use crate::generator::raw::{Sections, section_offsets};

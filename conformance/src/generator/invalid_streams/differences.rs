@@ -1,8 +1,8 @@
 //! Invalid colour differences (SPEC.md section 6.6): a `CDIF` with a payload, and coded
 //! differences whose colour reaches 2^24.
 
-use pwgs_decoder::stream::colour_differences::COLOUR_DIFFERENCES;
-use pwgs_decoder::stream::plain::{COLORS, PlainGaussians};
+use pwgs_codec::stream::colour_differences::COLOUR_DIFFERENCES;
+use pwgs_codec::stream::plain::{COLORS, PlainGaussians};
 
 use super::{Cases, edit};
 use crate::generator::content::ordinary_gaussians;

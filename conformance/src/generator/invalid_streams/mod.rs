@@ -11,9 +11,9 @@ mod sections;
 mod trees;
 
 use pwgs_bitstream::Tag;
-use pwgs_decoder::stream::plain::{COLORS, OPACITIES, ROTATIONS, SCALES, SH_REST};
-use pwgs_decoder::stream::wrap::QuantizedSynthesis;
-use pwgs_decoder::wrapper::synthesis::WrapperConfig;
+use pwgs_codec::stream::plain::{COLORS, OPACITIES, ROTATIONS, SCALES, SH_REST};
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
+use pwgs_codec::wrapper::synthesis::WrapperConfig;
 
 use super::Refusal;
 use super::content::{self, BlockValues, Ranges, ordinary, ordinary_gaussians};

@@ -1,9 +1,9 @@
 //! Streams with two failures: the decoder must report the one decision 7 checks first.
 
 use pwgs_bitstream::Tag;
-use pwgs_decoder::stream::entropy::TOTAL;
-use pwgs_decoder::stream::plain::{COLORS, OPACITIES, POSITIONS, ROTATIONS, SCALES};
-use pwgs_decoder::stream::wrap::WRAPPER;
+use pwgs_codec::stream::entropy::TOTAL;
+use pwgs_codec::stream::plain::{COLORS, OPACITIES, POSITIONS, ROTATIONS, SCALES};
+use pwgs_codec::stream::wrap::WRAPPER;
 
 use super::{Bases, Cases, edit, edit_block, head, posn, put, unknown_critical, wrap};
 use crate::generator::raw::{Sections, raw_table, section_offsets};

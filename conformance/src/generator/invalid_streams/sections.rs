@@ -1,9 +1,9 @@
 //! Invalid plain-3DGS sections and wrappers.
 
 use pwgs_bitstream::Tag;
-use pwgs_decoder::stream::entropy::MAX_MAGNITUDE;
-use pwgs_decoder::stream::plain::{COLORS, OPACITIES, POSITIONS, ROTATIONS, SCALES, SH_REST};
-use pwgs_decoder::stream::wrap::WRAPPER;
+use pwgs_codec::stream::entropy::MAX_MAGNITUDE;
+use pwgs_codec::stream::plain::{COLORS, OPACITIES, POSITIONS, ROTATIONS, SCALES, SH_REST};
+use pwgs_codec::stream::wrap::WRAPPER;
 
 use super::{Bases, Cases, edit, head, posn, put, wrap};
 use crate::generator::raw::{BlockParts, Sections, block, flat_table};

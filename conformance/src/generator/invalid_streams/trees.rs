@@ -3,9 +3,9 @@
 //! symbol past its tree's values.
 
 use pwgs_bitstream::FieldWriter;
-use pwgs_decoder::stream::entropy::SymbolEncoder;
-use pwgs_decoder::stream::plain::{PlainGaussians, SCALES};
-use pwgs_decoder::stream::trees::{ADAPTIVE, TreeModel, Trees};
+use pwgs_codec::stream::entropy::SymbolEncoder;
+use pwgs_codec::stream::plain::{PlainGaussians, SCALES};
+use pwgs_codec::stream::trees::{ADAPTIVE, TreeModel, Trees};
 
 use super::{Cases, edit};
 use crate::generator::content::{classed_gaussians, ordinary_gaussians, smooth};

@@ -1,7 +1,7 @@
 //! Training the anchor base for pixels (Scaffold-GS's objective: 0.8 L1 + 0.2 (1 - SSIM) +
 //! 0.01 x the mean volume of the neural Gaussians), with Scaffold-GS's learning rates. Each
 //! step derives the view's neural Gaussians with the same formulas as
-//! [`pwgs_decoder::anchor`], on tensors, and renders them with the differentiable rasterizer.
+//! [`pwgs_codec::anchor`], on tensors, and renders them with the differentiable rasterizer.
 //!
 //! With quantization noise on, the anchors' features, scaling and offsets are perturbed by
 //! uniform noise of their quantization steps (the usual proxy for rounding, as in HAC), so that
@@ -28,14 +28,14 @@
 use anyhow::{Result, bail};
 use burn::tensor::activation::{log_sigmoid, sigmoid};
 use burn::tensor::{Device, Int, Tensor, TensorData};
+use pwgs_codec::anchor::AnchorModel;
+use pwgs_codec::stream::anchor_context::predicted_values;
+use pwgs_codec::stream::plain::PositionGrid;
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::SH_C0;
 use pwgs_core::random::SplitMix64;
 use pwgs_dataset::Dataset;
-use pwgs_decoder::anchor::AnchorModel;
-use pwgs_decoder::raster::RenderOptions;
-use pwgs_decoder::stream::anchor_context::predicted_values;
-use pwgs_decoder::stream::plain::PositionGrid;
+use pwgs_render::raster::RenderOptions;
 
 mod growth_event;
 mod rate_term;
@@ -54,8 +54,8 @@ use crate::splat_op::{SplatView, render};
 use crate::train::adam::direction;
 use crate::train::params::tensor_values;
 use crate::train::{WrapperStage, WrapperTraining};
+use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::frame::SceneFrame;
-use pwgs_decoder::wrapper::synthesis::SynthesisWeights;
 
 /// The trained tensors, in this order: features [N, F], scaling [N, 6], offsets [N, 3K], then
 /// for each MLP (opacity, color, covariance) W1 [in, hidden], b1 [1, hidden], W2 [hidden, out],

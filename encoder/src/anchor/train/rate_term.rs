@@ -8,8 +8,8 @@ use crate::anchor::host::host_tensor;
 use crate::anchor::quantize::AnchorSteps;
 use crate::anchor::rate::factorized_bits;
 use crate::train::params::tensor_values;
-use pwgs_decoder::stream::anchor_context::predicted_values;
-use pwgs_decoder::stream::octree::{self, OctreeError};
+use pwgs_codec::stream::anchor_context::predicted_values;
+use pwgs_codec::stream::octree::{self, OctreeError};
 
 /// Bits the stream spends on an open anchor besides its values, on average: its position (the
 /// open anchors' voxels coded as `APOS` codes them) and its K masks (each offset's mask at its
@@ -138,10 +138,10 @@ impl AnchorTrainer {
 
 #[cfg(test)]
 mod tests {
+    use pwgs_codec::anchor::AnchorModel;
+    use pwgs_codec::stream::plain::PositionGrid;
     use pwgs_dataset::synthetic::{SyntheticOptions, generate};
     use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-    use pwgs_decoder::anchor::AnchorModel;
-    use pwgs_decoder::stream::plain::PositionGrid;
 
     use super::super::{MASK_LOGITS, mask_gate};
     use super::*;

@@ -12,8 +12,8 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::parser::ValueSource;
 use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
+use pwgs_core::say;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
-use pwgs_decoder::say;
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
 use pwgs_encoder::session::{compare_models, encode_scene, import_ply, train_anchor_scene};
 

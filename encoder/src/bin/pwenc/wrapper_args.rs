@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
+use pwgs_codec::stream::wrap::MAX_WIDTH;
+use pwgs_codec::wrapper::synthesis::WrapperConfig;
 use pwgs_core::random::SplitMix64;
-use pwgs_decoder::stream::wrap::MAX_WIDTH;
-use pwgs_decoder::wrapper::synthesis::WrapperConfig;
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
 use pwgs_encoder::metrics::vgg_wasserstein::{IMAGE_SCALES, MIN_SIDE, WdDepth};
 use pwgs_encoder::metrics::vgg16::VGG_BLOCKS;

@@ -1,0 +1,13 @@
+//! The normative part of pwgs: what a stream means, bit for bit. The container's sections, the
+//! entropy coding, both bases' syntax and reconstruction (plain Gaussians; anchors, their
+//! networks and context model), the perceptual wrapper's noise pyramid, Plücker embeddings and
+//! network, and the portable math they use. The encoder calls these instead of re-implementing
+//! them; renderers take what they reconstruct.
+
+pub mod anchor;
+pub mod context_grid;
+pub mod portable_math;
+pub mod random_scene;
+pub mod scene;
+pub mod stream;
+pub mod wrapper;
