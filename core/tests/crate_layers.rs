@@ -9,8 +9,8 @@ use std::path::Path;
 const LAYERS: [(&str, &str, u32); 11] = [
     ("bitstream-spec", "pwgs-bitstream", 0),
     ("core", "pwgs-core", 0),
-    ("bench", "pwgs-bench", 0),
-    ("rate", "pwgs-rate", 0),
+    ("rd-report", "pwgs-rd-report", 0),
+    ("rating", "pwgs-rating", 0),
     ("codec", "pwgs-codec", 1),
     ("dataset", "pwgs-dataset", 1),
     ("render", "pwgs-render", 2),

@@ -5,9 +5,9 @@
 
 use std::process::Command;
 
-use pwgs_rate::chart::Z95;
-use pwgs_rate::elo::{ELO_PER_UNIT, fit};
-use pwgs_rate::judgments::{GROUND_TRUTH, Judgment, screen};
+use pwgs_rating::chart::Z95;
+use pwgs_rating::elo::{ELO_PER_UNIT, fit};
+use pwgs_rating::judgments::{GROUND_TRUTH, Judgment, screen};
 
 /// A small deterministic generator (SplitMix64) for the simulation.
 struct Rng(u64);

@@ -54,7 +54,7 @@ fn the_server_asks_serves_and_keeps_judgments() {
     // Killed without warning, the server has kept every acknowledged judgment.
     server.kill().unwrap();
     server.wait().unwrap();
-    let lines = pwgs_rate::judgments::read(&file).unwrap();
+    let lines = pwgs_rating::judgments::read(&file).unwrap();
     assert_eq!(lines.len(), saved);
     let out = Command::new(env!("CARGO_BIN_EXE_pwrate")).args(["fit", file.to_str().unwrap()]).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -93,7 +93,7 @@ fn runs_eval_folders_are_rated_as_they_are() {
         }
     }
     let runs = [("old".to_string(), tmp.path().join("blurry")), ("new".to_string(), tmp.path().join("sharp"))];
-    let s = pwgs_rate::study::Study::of_runs(&runs).unwrap();
+    let s = pwgs_rating::study::Study::of_runs(&runs).unwrap();
     assert_eq!(s.methods, ["new", "old"]);
     assert_eq!(s.image("old", "a.png").unwrap(), tmp.path().join("blurry/a.png"));
     assert_eq!(s.image("ground-truth", "b.png").unwrap(), tmp.path().join("blurry/gt/b.png"));

@@ -7,9 +7,9 @@ use std::process::ExitCode;
 
 use anyhow::{Result, bail};
 use clap::{Args, Parser, Subcommand};
-use pwgs_bench::report::write_report;
-use pwgs_bench::runs::Curve;
-use pwgs_bench::sweep::Plan;
+use pwgs_rd_report::report::write_report;
+use pwgs_rd_report::runs::Curve;
+use pwgs_rd_report::sweep::Plan;
 
 #[derive(Parser)]
 #[command(

@@ -120,10 +120,10 @@ fn a_scripted_rater_completes_a_session_in_chromium() {
         wait_for(driver_port, s, &saved);
     }
     request(driver_port, "DELETE", &format!("/session/{s}"), "");
-    let judgments = pwgs_rate::judgments::read(&file).unwrap();
+    let judgments = pwgs_rating::judgments::read(&file).unwrap();
     assert_eq!(judgments.len(), 24);
     assert!(judgments.iter().all(|j| j.rater == "bot"));
-    let report = pwgs_rate::fit_study(&file, 400.0, 0.8, None).unwrap();
+    let report = pwgs_rating::fit_study(&file, 400.0, 0.8, None).unwrap();
     let first = report.lines().skip_while(|l| !l.starts_with("method")).nth(1).unwrap();
     assert!(first.starts_with("sharp"), "{report}");
 }

@@ -6,9 +6,9 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
-use pwgs_rate::fit_study;
-use pwgs_rate::server::serve;
-use pwgs_rate::study::Study;
+use pwgs_rating::fit_study;
+use pwgs_rating::server::serve;
+use pwgs_rating::study::Study;
 
 #[derive(Parser)]
 #[command(name = "pwrate", version, about = "Human A/B ratings of renders and their Bayesian Elo")]
