@@ -23,11 +23,11 @@ const SQRT_2: f64 = std::f64::consts::SQRT_2;
 
 /// ln 2 split for f32: `EXP_F32_LN2_HI` has 9 significant bits, so `k * EXP_F32_LN2_HI` is exact for
 /// |k| < 2^15.
-pub const EXP_F32_LN2_HI: f32 = 0.693_359_4;
-pub const EXP_F32_LN2_LO: f32 = -2.121_944_4e-4;
+pub(crate) const EXP_F32_LN2_HI: f32 = 0.693_359_4;
+pub(crate) const EXP_F32_LN2_LO: f32 = -2.121_944_4e-4;
 /// Above this `exp_f32` is infinity, below `EXP_F32_LO` zero.
-pub const EXP_F32_HI: f32 = 88.72;
-pub const EXP_F32_LO: f32 = -87.33;
+pub(crate) const EXP_F32_HI: f32 = 88.72;
+pub(crate) const EXP_F32_LO: f32 = -87.33;
 
 /// 1/n! for n = 13 down to 0, the Taylor coefficients of e^r from the highest.
 const EXP_TAYLOR: [f64; 14] = [
@@ -47,7 +47,7 @@ const EXP_TAYLOR: [f64; 14] = [
     1.0,
 ];
 /// 1/n! for n = 7 down to 0.
-pub const EXP_F32_COEFFICIENTS: [f32; 8] =
+pub(crate) const EXP_F32_COEFFICIENTS: [f32; 8] =
     [1.0 / 5_040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0];
 /// 1/(2n + 1) for n = 12 down to 0: atanh(s) / s as a series in s^2, from the highest term.
 const ATANH_SERIES: [f64; 13] = [

@@ -107,6 +107,29 @@ impl Window {
             && u64::from(self.x0) + u64::from(self.width) <= u64::from(camera.width)
             && u64::from(self.y0) + u64::from(self.height) <= u64::from(camera.height)
     }
+
+    /// Tiles across and down, counted from the window's top left corner (the last ones cut at
+    /// its edges).
+    pub fn tile_counts(&self) -> (u32, u32) {
+        (self.width.div_ceil(TILE_SIZE), self.height.div_ceil(TILE_SIZE))
+    }
+
+    /// The pixels of tiles [tx0, tx1) x [ty0, ty1) of the window, cut at its edges.
+    pub fn tiles(&self, [tx0, tx1, ty0, ty1]: [u32; 4]) -> Window {
+        let (x0, y0) = (tx0 * TILE_SIZE, ty0 * TILE_SIZE);
+        Window {
+            x0: self.x0 + x0,
+            y0: self.y0 + y0,
+            width: (tx1 * TILE_SIZE).min(self.width) - x0,
+            height: (ty1 * TILE_SIZE).min(self.height) - y0,
+        }
+    }
+
+    /// Pixel rectangle of tile (tx, ty) of the window: x in [x0, x1), y in [y0, y1).
+    pub fn tile_rect(&self, tx: u32, ty: u32) -> [u32; 4] {
+        let tile = self.tiles([tx, tx + 1, ty, ty + 1]);
+        [tile.x0, tile.x0 + tile.width, tile.y0, tile.y0 + tile.height]
+    }
 }
 
 /// A rendered view (or window of one) with what the backward pass needs. Per-pixel arrays

@@ -13,7 +13,6 @@
 //! ends there. The bound is taken with margins far above the blend paths' rounding and their
 //! falloff approximation, so the image is the one the full lists give, bit for bit.
 
-use super::TILE_SIZE;
 use super::Window;
 use super::project::Splat;
 use super::tile_lists::ListEnds;
@@ -59,27 +58,21 @@ pub fn splat_list_ends(splats: &[Splat], view: Window, stops: Stops) -> ListEnds
 /// [`splat_list_ends`] for `count` splats (front to back) given by `footprint` (the GPU
 /// renderer's, read back from the device).
 pub fn list_ends(count: usize, footprint: impl Fn(usize) -> Footprint, view: Window, stops: Stops) -> ListEnds {
-    let tiles = view.width.div_ceil(TILE_SIZE) * view.height.div_ceil(TILE_SIZE);
+    let (tiles_x, tiles_y) = view.tile_counts();
     // Per tile, the bound of its pixels' transmittance after the splats so far.
-    let mut bound = vec![1.0f64; tiles as usize];
+    let mut bound = vec![1.0f64; (tiles_x * tiles_y) as usize];
     let limit = stops.transmittance_min * TRANSMITTANCE_MARGIN;
     ListEnds::closing(
         count,
         |i| footprint(i).bbox,
         view,
         |i, tx, ty| {
-            let Some(alpha) = smallest_alpha(&footprint(i), tile_rect(view, tx, ty), stops) else { return false };
-            let t = (ty * view.width.div_ceil(TILE_SIZE) + tx) as usize;
+            let Some(alpha) = smallest_alpha(&footprint(i), view.tile_rect(tx, ty), stops) else { return false };
+            let t = (ty * tiles_x + tx) as usize;
             bound[t] *= 1.0 - alpha;
             bound[t] <= limit
         },
     )
-}
-
-/// Pixel rectangle of tile (tx, ty) of `window`: x in [x0, x1), y in [y0, y1).
-fn tile_rect(window: Window, tx: u32, ty: u32) -> [u32; 4] {
-    let (x0, y0) = (window.x0 + tx * TILE_SIZE, window.y0 + ty * TILE_SIZE);
-    [x0, (x0 + TILE_SIZE).min(window.x0 + window.width), y0, (y0 + TILE_SIZE).min(window.y0 + window.height)]
 }
 
 /// A lower bound, with margin, of the alpha `s` blends into every pixel of the tile `rect`,

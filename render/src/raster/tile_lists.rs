@@ -12,7 +12,7 @@
 //! ([`OpenTiles`]): their work is that of the entries listed, plus one step per item and row,
 //! however many items overlap tiles that have closed.
 
-use super::tiles::TileBins;
+use super::tiles::{TileBins, tile_range};
 use super::{TILE_SIZE, Window};
 
 /// How much one binning may hold: tile-list entries (4 bytes each) and window pixels (the
@@ -61,7 +61,7 @@ impl ListEnds {
         view: Window,
         mut closes: impl FnMut(usize, u32, u32) -> bool,
     ) -> Self {
-        let (tiles_x, tiles_y) = (view.width.div_ceil(TILE_SIZE), view.height.div_ceil(TILE_SIZE));
+        let (tiles_x, tiles_y) = view.tile_counts();
         let tile_count = (tiles_x * tiles_y) as usize;
         let mut ends = Self { view, tiles_x, tiles_y, closed_at: vec![OPEN; tile_count], lengths: vec![0; tile_count] };
         walk_open_tiles(count, bbox, view, |i, tx, ty| {
@@ -101,7 +101,7 @@ impl ListEnds {
                 pixels += row_pixels;
                 end += 1;
             }
-            windows.push(self.tile_window(0, self.tiles_x, ty, end));
+            windows.push(self.view.tiles([0, self.tiles_x, ty, end]));
             ty = end;
         }
         windows
@@ -114,12 +114,12 @@ impl ListEnds {
         for (tx, &length) in (0..).zip(self.row(ty)) {
             let pixels = u64::from(tx - start) * tile_pixels;
             if tx > start && (entries + u64::from(length) > budget.entries || pixels + tile_pixels > budget.pixels) {
-                spans.push(self.tile_window(start, tx, ty, ty + 1));
+                spans.push(self.view.tiles([start, tx, ty, ty + 1]));
                 (start, entries) = (tx, 0);
             }
             entries += u64::from(length);
         }
-        spans.push(self.tile_window(start, self.tiles_x, ty, ty + 1));
+        spans.push(self.view.tiles([start, self.tiles_x, ty, ty + 1]));
         spans
     }
 
@@ -128,23 +128,11 @@ impl ListEnds {
         &self.lengths[start..start + self.tiles_x as usize]
     }
 
-    /// The pixels of tiles [tx0, tx1) x [ty0, ty1).
-    fn tile_window(&self, tx0: u32, tx1: u32, ty0: u32, ty1: u32) -> Window {
-        let v = self.view;
-        let (x0, y0) = (tx0 * TILE_SIZE, ty0 * TILE_SIZE);
-        Window {
-            x0: v.x0 + x0,
-            y0: v.y0 + y0,
-            width: (tx1 * TILE_SIZE).min(v.width) - x0,
-            height: (ty1 * TILE_SIZE).min(v.height) - y0,
-        }
-    }
-
     /// The lists of `window` (made of whole tiles of the view, as [`ListEnds::windows`] gives
     /// them) of the `count` items with boxes `bbox` these ends were found for: `entries` are
     /// item positions, front to back in each tile.
     pub fn bin(&self, count: usize, bbox: impl Fn(usize) -> [u32; 4], window: Window) -> TileBins {
-        let (tiles_x, tiles_y) = (window.width.div_ceil(TILE_SIZE), window.height.div_ceil(TILE_SIZE));
+        let (tiles_x, tiles_y) = window.tile_counts();
         let (ox, oy) = ((window.x0 - self.view.x0) / TILE_SIZE, (window.y0 - self.view.y0) / TILE_SIZE);
         let view_tile = |tx: u32, ty: u32| ((ty + oy) * self.tiles_x + tx + ox) as usize;
         let mut offsets = Vec::with_capacity((tiles_x * tiles_y) as usize + 1);
@@ -176,7 +164,8 @@ fn walk_open_tiles(
     window: Window,
     mut visit: impl FnMut(usize, u32, u32) -> bool,
 ) {
-    let mut open = OpenTiles::new(window.width.div_ceil(TILE_SIZE), window.height.div_ceil(TILE_SIZE));
+    let (tiles_x, tiles_y) = window.tile_counts();
+    let mut open = OpenTiles::new(tiles_x, tiles_y);
     for i in 0..count {
         if open.none() {
             break;
@@ -191,9 +180,8 @@ fn tile_box([x0, x1, y0, y1]: [u32; 4], window: Window) -> Option<[u32; 4]> {
     let [x0, x1] = [x0.max(window.x0), x1.min(window.x0 + window.width)];
     let [y0, y1] = [y0.max(window.y0), y1.min(window.y0 + window.height)];
     (x0 < x1 && y0 < y1).then(|| {
-        let tiles = |p0: u32, p1: u32, o: u32| [(p0 - o) / TILE_SIZE, (p1 - 1 - o) / TILE_SIZE + 1];
-        let ([tx0, tx1], [ty0, ty1]) = (tiles(x0, x1, window.x0), tiles(y0, y1, window.y0));
-        [tx0, tx1, ty0, ty1]
+        let (xs, ys) = (tile_range(x0 - window.x0, x1 - window.x0), tile_range(y0 - window.y0, y1 - window.y0));
+        [xs.start, xs.end, ys.start, ys.end]
     })
 }
 

@@ -28,10 +28,7 @@ impl TileBins {
 
     /// Pixel rectangle of tile `t` in image coordinates: x in [x0, x1), y in [y0, y1).
     pub fn tile_rect(&self, t: usize) -> [u32; 4] {
-        let w = self.window;
-        let (tx, ty) = (t as u32 % self.tiles_x, t as u32 / self.tiles_x);
-        let (x0, y0) = (w.x0 + tx * TILE_SIZE, w.y0 + ty * TILE_SIZE);
-        [x0, (x0 + TILE_SIZE).min(w.x0 + w.width), y0, (y0 + TILE_SIZE).min(w.y0 + w.height)]
+        self.window.tile_rect(t as u32 % self.tiles_x, t as u32 / self.tiles_x)
     }
 
     /// Tile `t`'s splats with their positions in its list, in the given order (see
@@ -134,7 +131,7 @@ impl TileSplats<'_> {
 }
 
 /// Tile range [t0, t1) covered by a pixel range [p0, p1).
-fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
+pub(super) fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
     p0 / TILE_SIZE..(p1 - 1) / TILE_SIZE + 1
 }
 
@@ -142,8 +139,7 @@ fn tile_range(p0: u32, p1: u32) -> std::ops::Range<u32> {
 /// window's tiles, every list whole (the training path's binning, whose backward pass walks
 /// them; colour renders bin in bounded memory, [`super::tile_lists`]).
 pub fn bin(splats: &[Splat], window: Window) -> TileBins {
-    let tiles_x = window.width.div_ceil(TILE_SIZE);
-    let tiles_y = window.height.div_ceil(TILE_SIZE);
+    let (tiles_x, tiles_y) = window.tile_counts();
     let tile_count = (tiles_x * tiles_y) as usize;
     let mut offsets = vec![0usize; tile_count + 1];
     let for_each_tile = |s: &Splat, f: &mut dyn FnMut(usize)| {
