@@ -39,28 +39,11 @@ const ANCHOR_ONLY: &[&str] = &[
     "anchor_growth",
     "fixed_anchor_steps",
 ];
-/// Every option `--from-ply` reads: its input, the stream and its size, the tools for existing
-/// models, the orbit check and the report. It refuses every other one (an option added for
-/// training is refused with `--from-ply` unless it is added here).
-const IMPORT_READS: &[&str] = &[
-    "from_ply",
-    "spz_axes",
-    "output",
-    "quality",
-    "target_bytes",
-    "prune_faint",
-    "background",
-    "report",
-    "no_wrapper",
-    "orbit",
-    "up",
-    "orbit_size",
-    "orbit_renders",
-    "importance_classes",
-    "search_steps",
-    "refit_colours",
-    "refit_shapes",
-];
+/// The options `--from-ply` reads besides [`IMPORT_ONLY`]: its input, the stream and its size,
+/// the background and the report. It refuses every other one (an option added for training is
+/// refused with `--from-ply` unless it is listed here or there).
+const IMPORT_ALSO_READS: &[&str] =
+    &["from_ply", "output", "quality", "target_bytes", "background", "report", "no_wrapper"];
 /// Options only `--from-ply` reads (its input and its orbit check).
 const IMPORT_ONLY: &[&str] = &[
     "spz_axes",
@@ -288,7 +271,11 @@ impl EncodeArgs {
         let every = EncodeArgs::augment_args(clap::Command::new("pwenc"));
         let (ignored, why): (Vec<&str>, &str) = match (&self.from_ply, self.base) {
             (Some(_), _) => (
-                every.get_arguments().map(|a| a.get_id().as_str()).filter(|id| !IMPORT_READS.contains(id)).collect(),
+                every
+                    .get_arguments()
+                    .map(|a| a.get_id().as_str())
+                    .filter(|id| !IMPORT_ONLY.contains(id) && !IMPORT_ALSO_READS.contains(id))
+                    .collect(),
                 "applies to training on a scene; --from-ply compresses the model as it is",
             ),
             (None, Base::Anchor) => (
