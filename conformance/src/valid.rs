@@ -97,7 +97,7 @@ pub fn check_vector(dir: &Path) -> Result<Vec<RenderCheck>> {
                 bail!("{}: noise pyramid of seed {seed} hashes to {hash}, expected {pinned}", r.camera);
             }
         }
-        let ours = scene.render(&camera, &options, true).image.to_rgb8();
+        let ours = scene.render(&camera, &options, true)?.image.to_rgb8();
         let reference = image::open(dir.join(&r.image))?.to_rgb8();
         checks.push(compare_render(&r.image, &ours, &reference)?);
     }

@@ -86,7 +86,7 @@ pub fn evaluate(
         .iter()
         .map(|view| {
             let start = Instant::now();
-            let mut image = scene.render(&view.camera, &scene.render_options(), true).image;
+            let mut image = scene.render(&view.camera, &scene.render_options(), true)?.image;
             let render_seconds = start.elapsed().as_secs_f64();
             image.clamp_to_displayable();
             if let Some(dir) = out {

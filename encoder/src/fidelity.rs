@@ -6,8 +6,7 @@ use glam::Vec3;
 use pwgs_codec::scene::Scene;
 use pwgs_core::camera::{Camera, CameraError, Intrinsics};
 use pwgs_core::rgb_image::RgbImage;
-use pwgs_render::raster::RenderOptions;
-use pwgs_render::show::SceneRender;
+use pwgs_render::raster::{RenderOptions, render};
 
 use crate::compress::StreamContext;
 
@@ -32,12 +31,13 @@ pub fn orbit_cameras(context: &StreamContext, up: Vec3, count: usize, size: u32)
     )
 }
 
-/// Base renders of `scene` from each camera, clamped to the displayable range.
+/// Base renders of `scene` (the encoder's own, so without a work limit) from each camera,
+/// clamped to the displayable range.
 pub fn renders(scene: &Scene, cameras: &[Camera], options: &RenderOptions) -> Vec<RgbImage> {
     cameras
         .iter()
         .map(|cam| {
-            let mut image = scene.render_base(cam, options);
+            let mut image = render(&scene.gaussians_for(cam), cam, options);
             image.clamp_to_displayable();
             image
         })

@@ -27,7 +27,7 @@ fn shown(path: &Path, scene: &Path, wrapped: bool) -> Vec<(String, RgbImage)> {
         .iter()
         .map(|v| {
             let stem = Path::new(&v.name).file_stem().unwrap().to_string_lossy().into_owned();
-            (stem, decoded.scene.render(&v.camera, &options, wrapped).image)
+            (stem, decoded.scene.render(&v.camera, &options, wrapped).unwrap().image)
         })
         .collect()
 }

@@ -57,8 +57,8 @@ fn headless_screenshots_match_the_cpu_reference() {
     let decoded = stream::decode(&std::fs::read(&stream_path).unwrap()).unwrap();
     let camera = parse_camera(&std::fs::read_to_string(&view).unwrap()).unwrap();
     let options = decoded.scene.render_options();
-    let shown = decoded.scene.render(&camera, &options, true);
-    let base = decoded.scene.render(&camera, &options, false);
+    let shown = decoded.scene.render(&camera, &options, true).unwrap();
+    let base = decoded.scene.render(&camera, &options, false).unwrap();
     let residual: Vec<u8> = shown
         .residual
         .as_ref()

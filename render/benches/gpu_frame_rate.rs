@@ -60,7 +60,7 @@ fn main() {
                 v[v.len() / 2].as_secs_f64() * 1e3
             };
             let start = Instant::now();
-            let cpu = scene.render(&camera, &options, wrapped);
+            let cpu = scene.render(&camera, &options, wrapped).expect("within the CPU work limit");
             let cpu_ms = start.elapsed().as_secs_f64() * 1e3;
             let gpu_image = last.expect("frames were rendered").image;
             let max = cpu.image.data.iter().zip(&gpu_image.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);

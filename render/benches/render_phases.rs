@@ -1,6 +1,7 @@
 //! Where a CPU render of a stream's view goes: decoding, deriving the view's Gaussians,
 //! projection and sort, finding where each tile's list ends (the windows), filling the lists
-//! and blending, each timed alone, with the tile-list entries blended. For the heavy streams of
+//! and blending, each timed alone, with the tile-list entries blended and their work units
+//! ([`ListEnds::work`](pwgs_render::raster::tile_lists::ListEnds), no work limit). For the heavy streams of
 //! `limit-streams` and the hostile files:
 //! `cargo bench -p pwgs-decoder --bench render_phases -- STREAM CAMERA.json` (one run; report
 //! the figures with the machine and the thread count).
@@ -11,7 +12,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use pwgs_core::camera_json::parse_camera;
 use pwgs_render::raster::opaque_tiles::{Stops, splat_list_ends};
-use pwgs_render::raster::tile_lists::BinBudget;
+use pwgs_render::raster::tile_lists::{BinBudget, BlendLimit};
 use pwgs_render::raster::{Window, blend_bins, visible_splats};
 
 fn main() -> Result<()> {
@@ -37,7 +38,7 @@ fn main() -> Result<()> {
     timed(&format!("projection and sort ({} splats)", splats.len()), start);
     let start = Instant::now();
     let view = Window::full(&camera);
-    let ends = splat_list_ends(&splats, view, Stops::of(&options));
+    let ends = splat_list_ends(&splats, view, Stops::of(&options), (BlendLimit::NONE, gaussians.len()))?;
     let windows = ends.windows(BinBudget::DEFAULT);
     timed(&format!("list ends and windows ({} windows)", windows.len()), start);
     let (mut binning, mut blending, mut entries) = (0.0, 0.0, 0);
@@ -51,6 +52,12 @@ fn main() -> Result<()> {
         blending += start.elapsed().as_secs_f64();
     }
     println!("filling the lists: {binning:.3} s");
-    println!("blending {entries} entries: {blending:.3} s");
+    let pixels = u64::from(camera.width) * u64::from(camera.height);
+    let work = ends.work;
+    println!(
+        "blending {entries} entries, {work} work units ({:.1} per pixel): {blending:.3} s",
+        work as f64 / pixels as f64
+    );
+    println!("{:.2} ns per work unit", blending * 1e9 / work as f64);
     Ok(())
 }

@@ -6,7 +6,8 @@ use pwgs_codec::wrapper::apply;
 use pwgs_core::camera::Camera;
 use pwgs_core::rgb_image::RgbImage;
 
-use crate::raster::{RenderOptions, render};
+use crate::raster::tile_lists::TooMuchBlending;
+use crate::raster::{RenderOptions, render_limited};
 
 /// A view as a decoder shows it.
 #[derive(Debug, Clone, PartialEq)]
@@ -22,12 +23,13 @@ pub trait SceneRender {
     /// Render options with the scene's background.
     fn render_options(&self) -> RenderOptions;
 
-    /// The base render of `camera`, without the wrapper.
-    fn render_base(&self, camera: &Camera, options: &RenderOptions) -> RgbImage;
+    /// The base render of `camera`, without the wrapper; refused when the view needs more blend
+    /// work than [`render_limited`] allows.
+    fn render_base(&self, camera: &Camera, options: &RenderOptions) -> Result<RgbImage, TooMuchBlending>;
 
     /// What a decoder shows for `camera`: the base render, through the wrapper when the stream
     /// has one and `wrapped` asks for it.
-    fn render(&self, camera: &Camera, options: &RenderOptions, wrapped: bool) -> Shown;
+    fn render(&self, camera: &Camera, options: &RenderOptions, wrapped: bool) -> Result<Shown, TooMuchBlending>;
 }
 
 impl SceneRender for Scene {
@@ -35,25 +37,26 @@ impl SceneRender for Scene {
         RenderOptions { background: self.background, ..Default::default() }
     }
 
-    fn render_base(&self, camera: &Camera, options: &RenderOptions) -> RgbImage {
-        render(&self.gaussians_for(camera), camera, options)
+    fn render_base(&self, camera: &Camera, options: &RenderOptions) -> Result<RgbImage, TooMuchBlending> {
+        render_limited(&self.gaussians_for(camera), camera, options)
     }
 
-    fn render(&self, camera: &Camera, options: &RenderOptions, wrapped: bool) -> Shown {
-        let base = self.render_base(camera, options);
-        match self.wrapper_view().filter(|_| wrapped) {
+    fn render(&self, camera: &Camera, options: &RenderOptions, wrapped: bool) -> Result<Shown, TooMuchBlending> {
+        let base = self.render_base(camera, options)?;
+        Ok(match self.wrapper_view().filter(|_| wrapped) {
             Some(w) => {
                 let out = apply(w.weights, &base, camera, w.frame);
                 Shown { image: out.image, residual: Some(out.residual) }
             }
             None => Shown { image: base, residual: None },
-        }
+        })
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::raster::render;
     use pwgs_codec::random_scene::random_anchor_model;
     use pwgs_codec::scene::Base;
     use pwgs_codec::stream::attribute_hash;
@@ -76,10 +79,10 @@ mod tests {
         let base = render(&g, &camera, &options);
 
         // Without a wrapper, or when not asked for, the base render is what is shown.
-        assert_eq!(plain.render(&camera, &options, true), Shown { image: base.clone(), residual: None });
-        assert_eq!(wrapped.render(&camera, &options, false), Shown { image: base.clone(), residual: None });
+        assert_eq!(plain.render(&camera, &options, true), Ok(Shown { image: base.clone(), residual: None }));
+        assert_eq!(wrapped.render(&camera, &options, false), Ok(Shown { image: base.clone(), residual: None }));
         // Through the wrapper: the base plus the residual, clamped.
-        let shown = wrapped.render(&camera, &options, true);
+        let shown = wrapped.render(&camera, &options, true).expect("within the work limit");
         let residual = shown.residual.expect("the wrapper's residual");
         assert!(residual.iter().any(|&r| r != 0.0), "a random f changes the image");
         let expected: Vec<f32> = base.data.iter().zip(&residual).map(|(b, r)| (b + r).clamp(0.0, 1.0)).collect();
@@ -97,7 +100,10 @@ mod tests {
         let scene = Scene { base: Base::Anchors(Box::new(m.clone())), wrapper: None, frame, background: [0.0; 3] };
         let camera = axis_camera(24, 16, 20.0, 20.0, 12.0, 8.0);
         let options = scene.render_options();
-        assert_eq!(scene.render(&camera, &options, true).image, render(&m.gaussians_for(&camera), &camera, &options));
+        assert_eq!(
+            scene.render(&camera, &options, true).expect("within the limit").image,
+            render(&m.gaussians_for(&camera), &camera, &options)
+        );
         assert_eq!((scene.plain_gaussians(), scene.gaussian_count()), (None, 60));
         assert_eq!(scene.attribute_hash(), m.hash());
     }

@@ -67,7 +67,7 @@ fn conformance_vectors_render_alike_on_the_gpu() {
             let camera = parse_camera(&std::fs::read_to_string(&path).unwrap()).unwrap();
             let options = scene.render_options();
             for output in [Output::Shown, Output::Base] {
-                let cpu = scene.render(&camera, &options, output == Output::Shown);
+                let cpu = scene.render(&camera, &options, output == Output::Shown).unwrap();
                 let (shown, _) = gpu.render(scene, &prepared, &camera, &options, output).unwrap();
                 let (max, mean) = differences(&cpu.image, &shown.image);
                 eprintln!("{name} {} {output:?}: max {max:.2e}, mean {mean:.2e}", path.display());
@@ -95,7 +95,7 @@ fn a_random_scene_renders_alike_on_the_gpu() {
     let options = scene.render_options();
     let prepared = gpu.prepare(&scene).unwrap();
     for output in [Output::Base, Output::Shown] {
-        let cpu = scene.render(&camera, &options, output == Output::Shown);
+        let cpu = scene.render(&camera, &options, output == Output::Shown).unwrap();
         let (gpu_shown, times) = gpu.render(&scene, &prepared, &camera, &options, output).unwrap();
         let (max, mean) = differences(&cpu.image, &gpu_shown.image);
         eprintln!("{output:?}: max {max:.2e}, mean {mean:.2e}; {times:?}");
@@ -183,7 +183,7 @@ fn hard_gaussians_project_alike_on_the_gpu() {
     let scene = wrapped_random_scene(&mut rng, gaussians, [0.2, 0.3, 0.4]);
     let options = scene.render_options();
     let prepared = gpu.prepare(&scene).unwrap();
-    let cpu = scene.render(&camera, &options, false);
+    let cpu = scene.render(&camera, &options, false).unwrap();
     let (shown, _) = gpu.render(&scene, &prepared, &camera, &options, Output::Base).unwrap();
     let (max, mean) = differences(&cpu.image, &shown.image);
     eprintln!("hard cases: max {max:.2e}, mean {mean:.2e}");

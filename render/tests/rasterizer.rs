@@ -6,7 +6,7 @@ use common::{Rng, camera, max_abs_diff, naive_render, random_gaussians};
 use pwgs_core::gaussians::{Gaussians, SH_C0, rgb_to_sh_dc};
 use pwgs_render::raster::blend::{ColourMap, splat_weights};
 use pwgs_render::raster::opaque_tiles::{Stops, splat_list_ends};
-use pwgs_render::raster::tile_lists::{BinBudget, ListEnds};
+use pwgs_render::raster::tile_lists::{BinBudget, BlendLimit, ListEnds, TooMuchBlending};
 use pwgs_render::raster::tiles::ListOrder;
 use pwgs_render::raster::{
     BlendPath, RenderOptions, Window, rasterize, rasterize_window, render, render_within, visible_splats,
@@ -103,8 +103,29 @@ fn a_render_within_a_budget_is_the_whole_render() {
             );
         }
         assert!(budget.entries > 1 << 20 || windows.len() > 1, "{budget:?} splits the view");
-        assert_eq!(render_within(&g, &cam, &options, budget), whole.color, "{budget:?}");
+        assert_eq!(render_within(&g, &cam, &options, budget, BlendLimit::NONE), Ok(whole.color.clone()), "{budget:?}");
     }
+}
+
+/// A view is refused exactly when its lists' blend work passes the limit, with an error naming
+/// the view and the limit; within it, the render is the unlimited one.
+#[test]
+fn a_render_past_the_work_limit_is_refused() {
+    let mut rng = Rng(31);
+    let g = random_gaussians(&mut rng, 300, 0);
+    let cam = camera(120, 80, 100.0, 100.0, 60.0, 40.0);
+    let options = RenderOptions::default();
+    let splats = visible_splats(&g, &cam, &options.projection);
+    let full = Window::full(&cam);
+    let work = splat_list_ends(&splats, full, Stops::of(&options), (BlendLimit::NONE, g.len())).expect("no limit").work;
+    assert!(work > 120 * 80 + 2 * 300, "{work} units");
+    // 120 x 80 pixels and 300 Gaussians.
+    let at = BlendLimit { per_pixel: 1, per_gaussian: 2, fixed: work - 9600 - 600 };
+    assert_eq!(render_within(&g, &cam, &options, BinBudget::DEFAULT, at), Ok(render(&g, &cam, &options)));
+    let below = BlendLimit { fixed: work - 9600 - 601, ..at };
+    let refused = render_within(&g, &cam, &options, BinBudget::DEFAULT, below).expect_err("one unit short");
+    assert_eq!(refused, TooMuchBlending { width: 120, height: 80, gaussians: 300, limit: work - 1, rule: below });
+    assert!(refused.to_string().starts_with("the 120x80 view of 300 Gaussians needs more than"), "{refused}");
 }
 
 /// Large, nearly opaque splats: tiles turn opaque after a few of them, and the colour render's
@@ -124,7 +145,9 @@ fn lists_that_end_at_opaque_tiles_change_no_pixel() {
         let whole = rasterize(&g, &cam, &options);
         let splats = visible_splats(&g, &cam, &options.projection);
         let full = Window::full(&cam);
-        let shortened = splat_list_ends(&splats, full, Stops::of(&options)).bin(splats.len(), |i| splats[i].bbox, full);
+        let shortened = splat_list_ends(&splats, full, Stops::of(&options), (BlendLimit::NONE, g.len()))
+            .expect("no limit")
+            .bin(splats.len(), |i| splats[i].bbox, full);
         assert!(
             shortened.entries.len() * 4 < whole.bins.entries.len(),
             "{} of {} entries kept",

@@ -297,7 +297,7 @@ fn render_to(
         );
     }
     let start = Instant::now();
-    let shown = scene.render(camera, &scene.render_options(), wrapped);
+    let shown = scene.render(camera, &scene.render_options(), wrapped).with_context(|| out.display().to_string())?;
     shown.image.save_png(out)?;
     if let (Some(path), Some(r)) = (residual, shown.residual) {
         residual_picture(&r, camera.width, camera.height).save_png(path)?;

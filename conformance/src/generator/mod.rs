@@ -115,9 +115,9 @@ fn add_vector(files: &mut Files, v: Vector) -> Result<()> {
         let camera_json = camera_to_json(&content::camera(name));
         // Render the camera as a decoder reads it from the file.
         let camera = parse_camera(&camera_json)?;
-        let shown = scene.render(&camera, &options, true).image;
+        let shown = scene.render(&camera, &options, true)?.image;
         if scene.wrapper.is_some() {
-            let base = scene.render_base(&camera, &options).to_rgb8();
+            let base = scene.render_base(&camera, &options)?.to_rgb8();
             if compare_render(name, &base, &shown.to_rgb8()).is_ok() {
                 bail!("the wrapper moves the {name} view within the tolerance: a decoder ignoring it would pass");
             }

@@ -24,7 +24,7 @@ mod synthesis;
 use std::time::{Duration, Instant};
 
 use crate::raster::opaque_tiles::{Footprint, Stops, list_ends};
-use crate::raster::tile_lists::{BinBudget, ListEnds};
+use crate::raster::tile_lists::{BinBudget, BlendLimit, ListEnds, TooMuchBlending};
 use crate::raster::{RenderOptions, Window};
 use crate::show::Shown;
 use project::DeviceGaussians;
@@ -52,6 +52,8 @@ pub enum GpuError {
     ShDegree(u32),
     #[error("the scene was prepared for the GPU as another scene (prepare each scene it renders)")]
     NotPrepared,
+    #[error(transparent)]
+    TooMuchBlending(#[from] TooMuchBlending),
 }
 
 /// Which image a render returns.
@@ -220,7 +222,8 @@ impl GpuRenderer {
         let mut windows = full.windows(self.bin_budget);
         // Lists too long for one window are ended where their tile is surely opaque, with the
         // bound taken of the splats as the blend pass reads them (read back: 48 bytes per
-        // Gaussian, a cost an ordinary view, whose lists fit one window, does not pay).
+        // Gaussian, a cost an ordinary view, whose lists fit one window, does not pay), and
+        // refused past the CPU renderer's work limit, as pwdec refuses them.
         let ends = match windows.len() {
             1 => full,
             _ => {
@@ -234,7 +237,13 @@ impl GpuRenderer {
                         opacity: values[s + 5],
                     }
                 };
-                let ends = list_ends(order.len(), footprint, view, Stops::of(options));
+                let ends = list_ends(
+                    order.len(),
+                    footprint,
+                    view,
+                    Stops::of(options),
+                    (BlendLimit::DEFAULT, gaussians.count()),
+                )?;
                 windows = ends.windows(self.bin_budget);
                 ends
             }

@@ -33,6 +33,11 @@ pub struct DeviceGaussians {
 }
 
 impl DeviceGaussians {
+    /// How many Gaussians were uploaded.
+    pub fn count(&self) -> usize {
+        self.count as usize
+    }
+
     /// Uploads `gaussians` (SH degree at most 3).
     pub fn upload(gpu: &GpuRenderer, gaussians: &Gaussians) -> Result<Self, GpuError> {
         assert!(gaussians.is_consistent(), "Gaussian arrays have inconsistent lengths");

@@ -26,7 +26,7 @@ use project::{ProjectionSettings, Splat};
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::rgb_image::RgbImage;
-use tile_lists::{BinBudget, ListEnds};
+use tile_lists::{BinBudget, BlendLimit, ListEnds, TooMuchBlending};
 use tiles::TileBins;
 
 /// Tile edge in pixels.
@@ -240,26 +240,46 @@ fn clip_to_window(splats: Vec<Splat>, window: Window) -> Vec<Splat> {
 /// is surely opaque ([`opaque_tiles`]), so that whatever the splats, a render takes besides its
 /// image (12 bytes per pixel) and its splats (80 bytes each) about 100 MiB of tile lists and
 /// per-pixel arrays. The pixels are those of [`rasterize`]: every window's pixels are blended
-/// from the image's coordinates in the same order.
+/// from the image's coordinates in the same order. Its time is not bounded: decoders render
+/// streams with [`render_limited`].
 pub fn render(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions) -> RgbImage {
-    render_within(gaussians, camera, options, BinBudget::DEFAULT)
+    render_within(gaussians, camera, options, BinBudget::DEFAULT, BlendLimit::NONE)
+        .expect("a render without a work limit is never refused")
 }
 
-/// [`render`] within `budget` (tests use small budgets to exercise many windows).
-pub fn render_within(gaussians: &Gaussians, camera: &Camera, options: &RenderOptions, budget: BinBudget) -> RgbImage {
+/// [`render`] within [`BlendLimit::DEFAULT`]: a view whose blend work passes it is refused
+/// after projection, before any list is filled, so that the time a render of any stream takes
+/// is bounded by its pixels and Gaussians.
+pub fn render_limited(
+    gaussians: &Gaussians,
+    camera: &Camera,
+    options: &RenderOptions,
+) -> Result<RgbImage, TooMuchBlending> {
+    render_within(gaussians, camera, options, BinBudget::DEFAULT, BlendLimit::DEFAULT)
+}
+
+/// [`render`] within `budget` and `limit` (tests use small budgets to exercise many windows).
+/// The limit applies with the hard cutoff (the smooth one is for gradient checks).
+pub fn render_within(
+    gaussians: &Gaussians,
+    camera: &Camera,
+    options: &RenderOptions,
+    budget: BinBudget,
+    limit: BlendLimit,
+) -> Result<RgbImage, TooMuchBlending> {
     let splats = visible_splats(gaussians, camera, &options.projection);
     let full = Window::full(camera);
     let bbox = |i: usize| splats[i].bbox;
     // The smooth cutoff (gradient checks) blends below alpha_min: no tile is surely opaque.
     let ends = match options.cutoff {
-        Cutoff::Hard => opaque_tiles::splat_list_ends(&splats, full, Stops::of(options)),
+        Cutoff::Hard => opaque_tiles::splat_list_ends(&splats, full, Stops::of(options), (limit, gaussians.len()))?,
         Cutoff::Smooth => ListEnds::full(splats.len(), bbox, full),
     };
     let windows = ends.windows(budget);
     let mut image = RgbImage { width: camera.width, height: camera.height, data: Vec::new() };
     if let [window] = windows[..] {
         image.data = blend_bins(&splats, &ends.bin(splats.len(), bbox, window), options).color.data;
-        return image;
+        return Ok(image);
     }
     image.data = vec![0.0; full.width as usize * full.height as usize * 3];
     for window in windows {
@@ -271,5 +291,5 @@ pub fn render_within(gaussians: &Gaussians, camera: &Camera, options: &RenderOpt
             image.data[start..start + row].copy_from_slice(source);
         }
     }
-    image
+    Ok(image)
 }

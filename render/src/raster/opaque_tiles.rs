@@ -15,7 +15,7 @@
 
 use super::Window;
 use super::project::Splat;
-use super::tile_lists::ListEnds;
+use super::tile_lists::{BlendLimit, ListEnds, TooMuchBlending};
 use pwgs_codec::portable_math::exp_f64;
 
 /// Relative margin taken off each splat's smallest alpha (the blends' falloffs are within
@@ -50,29 +50,44 @@ impl From<&Splat> for Footprint {
 }
 
 /// Where each tile's list of `splats` (front to back) over `view` ends: at the splat after
-/// which the tile is surely opaque.
-pub fn splat_list_ends(splats: &[Splat], view: Window, stops: Stops) -> ListEnds {
-    list_ends(splats.len(), |i| Footprint::from(&splats[i]), view, stops)
+/// which the tile is surely opaque; refused once the lists' blend work passes `limit` (for a
+/// view of `gaussians` Gaussians).
+pub fn splat_list_ends(
+    splats: &[Splat],
+    view: Window,
+    stops: Stops,
+    (limit, gaussians): (BlendLimit, usize),
+) -> Result<ListEnds, TooMuchBlending> {
+    list_ends(splats.len(), |i| Footprint::from(&splats[i]), view, stops, (limit, gaussians))
 }
 
 /// [`splat_list_ends`] for `count` splats (front to back) given by `footprint` (the GPU
 /// renderer's, read back from the device).
-pub fn list_ends(count: usize, footprint: impl Fn(usize) -> Footprint, view: Window, stops: Stops) -> ListEnds {
+pub fn list_ends(
+    count: usize,
+    footprint: impl Fn(usize) -> Footprint,
+    view: Window,
+    stops: Stops,
+    (limit, gaussians): (BlendLimit, usize),
+) -> Result<ListEnds, TooMuchBlending> {
     let (tiles_x, tiles_y) = view.tile_counts();
     // Per tile, the bound of its pixels' transmittance after the splats so far.
     let mut bound = vec![1.0f64; (tiles_x * tiles_y) as usize];
-    let limit = stops.transmittance_min * TRANSMITTANCE_MARGIN;
-    ListEnds::closing(
+    let opaque_below = stops.transmittance_min * TRANSMITTANCE_MARGIN;
+    let units = limit.of(view, gaussians);
+    let ends = ListEnds::closing(
         count,
         |i| footprint(i).bbox,
         view,
+        units,
         |i, tx, ty| {
             let Some(alpha) = smallest_alpha(&footprint(i), view.tile_rect(tx, ty), stops) else { return false };
             let t = (ty * tiles_x + tx) as usize;
             bound[t] *= 1.0 - alpha;
-            bound[t] <= limit
+            bound[t] <= opaque_below
         },
-    )
+    );
+    ends.ok_or_else(|| limit.refusal(view, gaussians))
 }
 
 /// A lower bound, with margin, of the alpha `s` blends into every pixel of the tile `rect`,

@@ -11,6 +11,14 @@
 //! [`super::opaque_tiles`]). Both passes walk, per item and tile row, only the tiles still open
 //! ([`OpenTiles`]): their work is that of the entries listed, plus one step per item and row,
 //! however many items overlap tiles that have closed.
+//!
+//! Memory is bounded that way, but not time: splats that cross tiles without covering them
+//! (needles, faint edges) never close a tile, and 30,000 needles across a 1920x1080 view list
+//! 240M entries, half a minute of blending. A view's [`ListEnds::work`] counts what its blend
+//! will do, and a render within a [`BlendLimit`] refuses the view as soon as finding its list
+//! ends passes the limit, before any list is filled or blended.
+
+use std::ops::ControlFlow;
 
 use super::tiles::{TileBins, tile_range};
 use super::{TILE_SIZE, Window};
@@ -29,6 +37,62 @@ impl BinBudget {
     pub const DEFAULT: Self = Self { entries: 1 << 24, pixels: 1 << 20 };
 }
 
+/// The most blend work a render takes on (SPEC.md section 9): `per_pixel` units per pixel of
+/// the view, `per_gaussian` per Gaussian rendered and `fixed` units, a unit being one entry of
+/// a tile list or one pixel row of an entry's box within its tile ([`ListEnds::work`]: the
+/// blend loops run per row of the box, 13-20 ns a unit on the machine of
+/// docs/results/bounded-inputs.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BlendLimit {
+    pub per_pixel: u64,
+    pub per_gaussian: u64,
+    pub fixed: u64,
+}
+
+impl BlendLimit {
+    /// 32 units per pixel, 48 per Gaussian and 2^24: a view of a 1 MB stream (at most 500,000
+    /// Gaussians) renders in at most about 1.7 s per megapixel at 1920x1080 on the 2-core
+    /// machine of docs/results/bounded-inputs.md, in the dev profile, and the real models
+    /// measured there need a sixth of the pixels' share at 1920x1080.
+    pub const DEFAULT: Self = Self { per_pixel: 32, per_gaussian: 48, fixed: 1 << 24 };
+    /// No limit: for the encoder's renders of scenes it made itself.
+    pub const NONE: Self = Self { per_pixel: 0, per_gaussian: 0, fixed: u64::MAX };
+
+    /// The limit for `view` of `gaussians` Gaussians.
+    pub fn of(&self, view: Window, gaussians: usize) -> u64 {
+        let pixels = u64::from(view.width) * u64::from(view.height);
+        self.fixed
+            .saturating_add(self.per_pixel.saturating_mul(pixels))
+            .saturating_add(self.per_gaussian.saturating_mul(gaussians as u64))
+    }
+
+    /// The error refusing `view` of `gaussians` Gaussians.
+    pub fn refusal(&self, view: Window, gaussians: usize) -> TooMuchBlending {
+        TooMuchBlending {
+            width: view.width,
+            height: view.height,
+            gaussians,
+            limit: self.of(view, gaussians),
+            rule: *self,
+        }
+    }
+}
+
+/// A view refused for the blend work it needs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "the {width}x{height} view of {gaussians} Gaussians needs more than {limit} units of blend work (SPEC.md section 9 \
+     limits a view to {} per pixel, {} per Gaussian and {} more): its splats cross too many tiles without covering \
+     them; render a smaller view", rule.per_pixel, rule.per_gaussian, rule.fixed
+)]
+pub struct TooMuchBlending {
+    pub width: u32,
+    pub height: u32,
+    pub gaussians: usize,
+    pub limit: u64,
+    pub rule: BlendLimit,
+}
+
 /// Position of a tile that never closes.
 pub const OPEN: u32 = u32::MAX;
 
@@ -44,6 +108,8 @@ pub struct ListEnds {
     pub closed_at: Vec<u32>,
     /// Entries in each tile's list.
     pub lengths: Vec<u32>,
+    /// The blend work of the lists: per entry, one plus the pixel rows its box has in its tile.
+    pub work: u64,
 }
 
 impl ListEnds {
@@ -56,8 +122,10 @@ impl ListEnds {
         let stride = tiles_x as usize + 1;
         // Each item adds one to the rectangle of tiles its box meets.
         let mut sums = vec![0i64; stride * (tiles_y as usize + 1)];
+        let mut work = 0u64;
         for i in 0..count {
             let Some([tx0, tx1, ty0, ty1]) = tile_box(bbox(i), view) else { continue };
+            work += (ty0..ty1).map(|ty| entry_work(bbox(i), view, ty)).sum::<u64>() * u64::from(tx1 - tx0);
             let [tx0, tx1, ty0, ty1] = [tx0, tx1, ty0, ty1].map(|v| v as usize);
             sums[ty0 * stride + tx0] += 1;
             sums[ty0 * stride + tx1] -= 1;
@@ -77,30 +145,37 @@ impl ListEnds {
             .map(|(ty, tx)| sums[ty * stride + tx] as u32)
             .collect();
         let tile_count = (tiles_x * tiles_y) as usize;
-        Self { view, tiles_x, tiles_y, closed_at: vec![OPEN; tile_count], lengths }
+        Self { view, tiles_x, tiles_y, closed_at: vec![OPEN; tile_count], lengths, work }
     }
 
     /// The lists of `count` items with boxes `bbox`, each ending at the first item for which
-    /// `closes(item, tx, ty)` holds (asked of each item in order, for the tiles still open).
+    /// `closes(item, tx, ty)` holds (asked of each item in order, for the tiles still open), or
+    /// `None` as soon as their [`work`](Self::work) passes `limit` units.
     pub fn closing(
         count: usize,
         bbox: impl Fn(usize) -> [u32; 4],
         view: Window,
+        limit: u64,
         mut closes: impl FnMut(usize, u32, u32) -> bool,
-    ) -> Self {
+    ) -> Option<Self> {
         let (tiles_x, tiles_y) = view.tile_counts();
         let tile_count = (tiles_x * tiles_y) as usize;
-        let mut ends = Self { view, tiles_x, tiles_y, closed_at: vec![OPEN; tile_count], lengths: vec![0; tile_count] };
-        walk_open_tiles(count, bbox, view, |i, tx, ty| {
+        let (closed_at, lengths) = (vec![OPEN; tile_count], vec![0; tile_count]);
+        let mut ends = Self { view, tiles_x, tiles_y, closed_at, lengths, work: 0 };
+        let walk = walk_open_tiles(count, &bbox, view, |i, tx, ty| {
             let t = (ty * tiles_x + tx) as usize;
             ends.lengths[t] += 1;
+            ends.work += entry_work(bbox(i), view, ty);
+            if ends.work > limit {
+                return ControlFlow::Break(());
+            }
             let closed = closes(i, tx, ty);
             if closed {
                 ends.closed_at[t] = i as u32;
             }
-            closed
+            ControlFlow::Continue(closed)
         });
-        ends
+        walk.ok().map(|()| ends)
     }
 
     /// Windows of the view whose lists hold at most `budget`: bands of whole tile rows, top to
@@ -171,26 +246,36 @@ impl ListEnds {
         }
         let mut cursor = offsets.clone();
         let mut entries = vec![0u32; *offsets.last().expect("starts with 0")];
-        walk_open_tiles(count, bbox, window, |i, tx, ty| {
+        let walk = walk_open_tiles(count, bbox, window, |i, tx, ty| {
             let t = (ty * tiles_x + tx) as usize;
             entries[cursor[t]] = i as u32;
             cursor[t] += 1;
-            self.closed_at[view_tile(tx, ty)] == i as u32
+            ControlFlow::<(), _>::Continue(self.closed_at[view_tile(tx, ty)] == i as u32)
         });
+        debug_assert!(walk.is_ok(), "filling the lists is never stopped");
         debug_assert_eq!(cursor[..cursor.len() - 1], offsets[1..], "the lists are as long as counted");
         TileBins { window, tiles_x, tiles_y, offsets, entries }
     }
 }
 
+/// The blend work of an entry of tile row `ty` of `view` for an item with pixel box `bbox`:
+/// one, plus the box's pixel rows in that tile row.
+fn entry_work([_, _, y0, y1]: [u32; 4], view: Window, ty: u32) -> u64 {
+    let top = view.y0 + ty * TILE_SIZE;
+    let rows = y1.min(top + TILE_SIZE).saturating_sub(y0.max(top));
+    1 + u64::from(rows)
+}
+
 /// Walks `count` items (front to back) with pixel boxes `bbox` over the tiles of `window` that
 /// each meets and that are still open, calling `visit(item, tx, ty)`; a tile closes when
-/// `visit` returns true, and the walk ends once every tile has closed.
-fn walk_open_tiles(
+/// `visit` continues with true, the walk ends once every tile has closed, and stops where
+/// `visit` breaks.
+fn walk_open_tiles<B>(
     count: usize,
     bbox: impl Fn(usize) -> [u32; 4],
     window: Window,
-    mut visit: impl FnMut(usize, u32, u32) -> bool,
-) {
+    mut visit: impl FnMut(usize, u32, u32) -> ControlFlow<B, bool>,
+) -> Result<(), B> {
     let (tiles_x, tiles_y) = window.tile_counts();
     let mut open = OpenTiles::new(tiles_x, tiles_y);
     for i in 0..count {
@@ -198,8 +283,11 @@ fn walk_open_tiles(
             break;
         }
         let Some(range) = tile_box(bbox(i), window) else { continue };
-        open.walk(range, |tx, ty| visit(i, tx, ty));
+        if let ControlFlow::Break(b) = open.walk(range, |tx, ty| visit(i, tx, ty)) {
+            return Err(b);
+        }
     }
+    Ok(())
 }
 
 /// The tiles [tx0, tx1) x [ty0, ty1) of `window` that the pixel box `bbox` meets, if any.
@@ -234,8 +322,12 @@ impl OpenTiles {
     }
 
     /// Calls `visit(tx, ty)` for the open tiles of [tx0, tx1) x [ty0, ty1), row by row, left to
-    /// right; a tile closes when `visit` returns true.
-    fn walk(&mut self, [tx0, tx1, ty0, ty1]: [u32; 4], mut visit: impl FnMut(u32, u32) -> bool) {
+    /// right; a tile closes when `visit` continues with true, and the walk stops where it breaks.
+    fn walk<B>(
+        &mut self,
+        [tx0, tx1, ty0, ty1]: [u32; 4],
+        mut visit: impl FnMut(u32, u32) -> ControlFlow<B, bool>,
+    ) -> ControlFlow<B> {
         let stride = self.tiles_x as usize + 1;
         for ty in ty0..ty1 {
             if self.open_in_row[ty as usize] == 0 {
@@ -244,7 +336,7 @@ impl OpenTiles {
             let row = &mut self.next[ty as usize * stride..(ty as usize + 1) * stride];
             let mut tx = first_open(row, tx0);
             while tx < tx1 {
-                if visit(tx, ty) {
+                if visit(tx, ty)? {
                     row[tx as usize] = tx + 1;
                     self.open_in_row[ty as usize] -= 1;
                     self.open -= 1;
@@ -252,6 +344,7 @@ impl OpenTiles {
                 tx = first_open(row, tx + 1);
             }
         }
+        ControlFlow::Continue(())
     }
 }
 
@@ -282,16 +375,12 @@ mod tests {
             .collect();
         // Tile (tx, ty) closes at the (tx + ty + 2)-th item that reaches it.
         let mut reached = [0u32; 7 * 5];
-        let ends = ListEnds::closing(
-            boxes.len(),
-            |i| boxes[i],
-            view,
-            |_, tx, ty| {
-                let t = (ty * 7 + tx) as usize;
-                reached[t] += 1;
-                reached[t] == tx + ty + 2
-            },
-        );
+        let mut closes = |_, tx, ty| {
+            let t = (ty * 7 + tx) as usize;
+            reached[t] += 1;
+            reached[t] == tx + ty + 2
+        };
+        let ends = ListEnds::closing(boxes.len(), |i| boxes[i], view, u64::MAX, &mut closes).expect("no limit");
         let expected = |tx: u32, ty: u32| -> Vec<u32> {
             let (px, py) = (tx * TILE_SIZE, ty * TILE_SIZE);
             let meets = |b: &[u32; 4]| b[0] < px + TILE_SIZE && b[1] > px && b[2] < py + TILE_SIZE && b[3] > py;
@@ -312,6 +401,36 @@ mod tests {
             }
             assert_eq!(covered, 100 * 70, "the windows tile the view");
         }
+        let work: u64 = (0..7 * 5)
+            .map(|t| {
+                let (tx, ty) = (t % 7, t / 7);
+                let rows = |i: u32| {
+                    let [_, _, y0, y1] = boxes[i as usize];
+                    u64::from(y1.min((ty + 1) * TILE_SIZE) - y0.max(ty * TILE_SIZE))
+                };
+                expected(tx, ty).into_iter().map(|i| 1 + rows(i)).sum::<u64>()
+            })
+            .sum();
+        assert_eq!(ends.work, work, "one unit per entry and one per pixel row of its box in its tile");
+    }
+
+    /// Finding list ends stops as soon as their work passes the limit, and only then.
+    #[test]
+    fn list_ends_are_refused_past_the_work_limit() {
+        let view = Window { x0: 0, y0: 0, width: 64, height: 40 };
+        let boxes: Vec<[u32; 4]> = (0..50u32).map(|i| [i % 30, 34 + i % 30, i % 20, 20 + i % 20]).collect();
+        let full = ListEnds::full(boxes.len(), |i| boxes[i], view);
+        let never = |_, _, _| false;
+        let within = ListEnds::closing(boxes.len(), |i| boxes[i], view, full.work, never).expect("at the limit");
+        assert_eq!(
+            (within.work, &within.lengths),
+            (full.work, &full.lengths),
+            "lists that never close are the full lists"
+        );
+        assert_eq!(ListEnds::closing(boxes.len(), |i| boxes[i], view, full.work - 1, never), None);
+        let limit = BlendLimit { per_pixel: 3, per_gaussian: 5, fixed: 7 };
+        assert_eq!(limit.of(view, 11), 7 + 3 * 64 * 40 + 5 * 11);
+        assert_eq!(BlendLimit::NONE.of(view, 11), u64::MAX);
     }
 
     /// The full lists' lengths (a difference array) count every box that meets each tile, and

@@ -12,6 +12,8 @@ use pwgs_codec::stream::{self, Content};
 use pwgs_core::camera::{Camera, Intrinsics};
 use pwgs_core::camera_json::camera_to_json;
 
+use pwgs_codec::stream::plain::{PlainGaussians, QuantizedRotation};
+
 use super::super::content::{Draws, gaussians, header, ordinary, unit_cube};
 use super::{Hostile, HostileEntry, Outcome, Tool};
 
@@ -34,11 +36,29 @@ pub fn views() -> Vec<(String, Vec<u8>)> {
 }
 
 fn accepted(file: &str, class: u8, view: Option<(u32, u32)>, description: String, bytes: Vec<u8>) -> Hostile {
+    hostile(file, class, view, Outcome::Accepted, description, bytes)
+}
+
+/// What `pwdec` says of a view refused for its blend work.
+const TOO_MUCH_BLENDING: &str = "units of blend work";
+
+fn too_much_blending(file: &str, view: (u32, u32), description: String, bytes: Vec<u8>) -> Hostile {
+    hostile(file, 1, Some(view), Outcome::Refused(TOO_MUCH_BLENDING.into()), description, bytes)
+}
+
+fn hostile(
+    file: &str,
+    class: u8,
+    view: Option<(u32, u32)>,
+    outcome: Outcome,
+    description: String,
+    bytes: Vec<u8>,
+) -> Hostile {
     let entry = HostileEntry {
         class,
         tool: Tool::Pwdec,
         view: view.map(|(w, h)| format!("view-{w}x{h}.json")),
-        outcome: Outcome::Accepted,
+        outcome,
         description,
     };
     Hostile { file: file.to_string(), entry, bytes }
@@ -54,6 +74,44 @@ fn large_plain_gaussians() -> Vec<u8> {
     (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc) = ([-8, 0], [-4, 4], [8, 24], [-8, 8]);
     let content = gaussians(&mut draws, unit_cube(6), positions, 0, steps, &ranges);
     stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
+}
+
+/// `n` needles on a lattice over the unit cube: scale 1 along one axis and e^-7 across, opacity
+/// 0.98, turned 45 degrees either way about z, so that each crosses a view in front of the cube
+/// diagonally, about 3 px wide: its pixel box meets every tile, but it covers none and closes
+/// none. 30,000 of them list 200M entries at 1920x1080.
+fn needles(n: usize) -> Vec<u8> {
+    let mut content = lattice_gaussians(n, 4605, [0, -224, -224], 64);
+    // Rotation step 1/1024: sin(22.5 degrees) = 392/1024.
+    for (i, r) in content.rotations.iter_mut().enumerate() {
+        *r = QuantizedRotation { largest: 0, rest: [0, 0, if i % 2 == 0 { 392 } else { -392 }] };
+    }
+    plain_stream(&content)
+}
+
+/// `n` faint discs on a lattice over the unit cube: scale 1, opacity 0.008, so alpha is at
+/// least 1/255 within 1.2 standard deviations only, and a tile closes only after about 2,500 of
+/// them cover it whole; the tiles on their edges never close.
+fn faint_discs(n: usize) -> Vec<u8> {
+    plain_stream(&lattice_gaussians(n, 4607, [0; 3], -77))
+}
+
+/// `n` grey Gaussians of SH degree 0 on the cells of [`grid_for`]'s grid, all of log scale
+/// `log_scale` (steps of 1/32) and opacity logit `opacity` (steps of 1/16), unrotated: the
+/// writer pads such a stream to the least length its count allows.
+fn lattice_gaussians(n: usize, seed: u64, log_scale: [i32; 3], opacity: i32) -> PlainGaussians {
+    let (side, depth) = grid_for(n);
+    let (steps, mut ranges) = ordinary(0);
+    (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc) = ([0, 0], [0, 0], [opacity, opacity], [0, 0]);
+    let grid = PositionGrid { origin: [-1.0; 3], cell: 2.0 / side as f32, depth };
+    let mut content = gaussians(&mut Draws::new(seed), grid, cells(n), 0, steps, &ranges);
+    content.log_scales.fill(log_scale);
+    content.rotations.fill(QuantizedRotation { largest: 0, rest: [0; 3] });
+    content
+}
+
+fn plain_stream(content: &PlainGaussians) -> Vec<u8> {
+    stream::encode(&header(content), content, None).expect("the Gaussians fit the octree")
 }
 
 /// `n` anchors in distinct cells of a 32^3 grid over [-1, 1]^3 with every value 0 and every
@@ -113,8 +171,7 @@ fn most_plain_gaussians() -> Vec<u8> {
     (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc, ranges.sh_rest) =
         ([-80, -80], [0, 0], [0, 0], [0, 0], [0, 0]);
     let grid = PositionGrid { origin: [-1.0; 3], cell: 2.0 / side as f32, depth };
-    let content = gaussians(&mut Draws::new(4603), grid, cells(n), 3, steps, &ranges);
-    stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
+    plain_stream(&gaussians(&mut Draws::new(4603), grid, cells(n), 3, steps, &ranges))
 }
 
 /// 500,000 plain Gaussians of SH degree 0 on a depth-24 octree, at the corners of a 100 x 100
@@ -125,8 +182,7 @@ fn deepest_octree() -> Vec<u8> {
     let (steps, mut ranges) = ordinary(0);
     (ranges.log_scale, ranges.rotation, ranges.opacity, ranges.dc) = ([-128, -128], [0, 0], [0, 0], [0, 0]);
     let grid = PositionGrid { origin: [-1.0; 3], cell: 2.0 / (1u32 << 24) as f32, depth: 24 };
-    let content = gaussians(&mut Draws::new(4604), grid, positions, 0, steps, &ranges);
-    stream::encode(&header(&content), &content, None).expect("the Gaussians fit the octree")
+    plain_stream(&gaussians(&mut Draws::new(4604), grid, positions, 0, steps, &ranges))
 }
 
 fn anchor_stream(content: &QuantizedAnchors) -> Vec<u8> {
@@ -183,6 +239,15 @@ pub fn files() -> Vec<Hostile> {
                 .into(),
             anchor_stream(&neural),
         ),
+        too_much_blending(
+            "plain-30k-needles.pwb",
+            (1920, 1080),
+            "30,000 plain needles (scale 1 by e^-7, opacity 0.98) crossing a 1920x1080 view diagonally: each meets \
+             every tile's box but covers no tile, so no list ends early; 200M tile-list entries, half a minute of \
+             blending, past the work limit of SPEC 9."
+                .into(),
+            needles(30_000),
+        ),
         accepted(
             "anchors-view-networks-at-limit.pwb",
             2,
@@ -214,12 +279,12 @@ pub fn at_one_megabyte() -> Vec<Hostile> {
     // At all three limits: 500,000 anchors (2N = L) of K = 1 (2M = L) and F = 54 (32 values per byte).
     let most_anchors = uniform_anchors(500_000, (54, 1), [1; 3]);
     vec![
-        accepted(
+        too_much_blending(
             "anchors-values-and-neural-gaussians-at-limit.pwb",
-            2,
-            Some((1920, 1080)),
+            (1920, 1080),
             "500,000 anchors of F = 54 and K = 1 in a 1,000,000-byte stream: 32 values per byte and one anchor and one \
-             neural Gaussian per two bytes, the limits of SPEC 4, 12.1 and 12.3, at 1920x1080."
+             neural Gaussian per two bytes, the limits of SPEC 4, 12.1 and 12.3; at 1920x1080 its large faint splats \
+             need 153M units of blend work, past the limit of SPEC 9 (107M)."
                 .into(),
             anchor_stream(&most_anchors),
         ),
@@ -249,6 +314,23 @@ pub fn at_one_megabyte() -> Vec<Hostile> {
              allows, at 1920x1080."
                 .into(),
             anchor_stream(&most_values),
+        ),
+        too_much_blending(
+            "plain-500k-needles.pwb",
+            (64, 48),
+            "500,000 plain needles crossing the view diagonally in a 1,000,000-byte stream: past the work limit of \
+             SPEC 9 even at 64x48 (6M tile-list entries)."
+                .into(),
+            needles(500_000),
+        ),
+        accepted(
+            "plain-500k-faint-discs.pwb",
+            1,
+            Some((64, 48)),
+            "500,000 plain Gaussians of scale 1 and opacity 0.008 in a 1,000,000-byte stream: a tile's list ends only \
+             after about 2,500 cover it whole."
+                .into(),
+            faint_discs(500_000),
         ),
     ]
 }
