@@ -17,7 +17,7 @@ use crate::file_dialog::{Choice, FileDialog};
 use crate::headless::describe_times;
 use crate::loaded::LoadedStream;
 use crate::orbit::Orbit;
-use crate::view_mode::{ViewMode, picture};
+use crate::view_mode::{Painter, Renderer, ViewMode, picture};
 
 /// What the window starts with.
 #[derive(Debug, Clone, Default)]
@@ -32,6 +32,7 @@ pub struct PlayerOptions {
     /// Save a screenshot of the whole window here once the first view is shown, then close
     /// (for scripted checks of the real window).
     pub window_screenshot: Option<PathBuf>,
+    pub renderer: Renderer,
 }
 
 /// Opens the player's window and runs until it is closed.
@@ -94,6 +95,7 @@ struct Player {
     file_dialog: FileDialog,
     screenshot_path: String,
     window_screenshot: Option<PathBuf>,
+    renderer: Renderer,
 }
 
 impl Player {
@@ -125,6 +127,7 @@ impl Player {
             file_dialog: FileDialog::default(),
             screenshot_path: "pwplay-screenshot.png".into(),
             window_screenshot: options.window_screenshot,
+            renderer: options.renderer,
         };
         if let Some(path) = options.stream {
             player.open(path, &cc.egui_ctx);
@@ -250,7 +253,7 @@ impl Player {
             ui.label(format!("{}x{}, {per_second:.1} pictures/s", s.key.width, s.key.height));
             ui.label(describe_times(&s.times));
         }
-        ui.label(self.gpu.adapter_name());
+        ui.label(self.renderer.describe(&self.gpu));
         ui.horizontal(|ui| {
             ui.text_edit_singleline(&mut self.screenshot_path);
             if ui.button("Screenshot").clicked()
@@ -362,7 +365,8 @@ impl Player {
             generation: self.generation,
         };
         if self.continuous || self.shown.as_ref().is_none_or(|s| s.key != key) {
-            match picture(&self.gpu, &stream.scene, prepared, &camera, self.mode, self.residual_gain) {
+            let painter = Painter { gpu: &self.gpu, prepared, on_cpu: self.renderer.on_cpu(&self.gpu) };
+            match picture(painter, &stream.scene, &camera, self.mode, self.residual_gain) {
                 Ok((mut image, times)) => {
                     if let (Some(d), Some(i)) = (&self.dataset, self.view) {
                         d.overlay_ground_truth(i, &mut image, self.split);

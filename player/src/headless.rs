@@ -1,4 +1,4 @@
-//! `pwplay STREAM --view CAM --screenshot OUT`: one picture through the player's GPU path,
+//! `pwplay STREAM --view CAM --screenshot OUT`: one picture through the player's render path,
 //! without a window, for scripts and tests.
 
 use std::path::Path;
@@ -9,7 +9,7 @@ use pwgs_core::camera_json::parse_camera;
 use pwgs_render::gpu::{GpuRenderer, StageTimes};
 
 use crate::loaded::LoadedStream;
-use crate::view_mode::{ViewMode, picture};
+use crate::view_mode::{Painter, Renderer, ViewMode, picture};
 
 /// Gain of the residual picture: R is a few hundredths, 4x makes it visible.
 pub const RESIDUAL_GAIN: f32 = 4.0;
@@ -18,7 +18,14 @@ pub const RESIDUAL_GAIN: f32 = 4.0;
 /// `frames` > 0, renders it `frames` times more and prints the median time of each stage and
 /// the frame rate they allow (the first picture pays for shader compilation, so it is not
 /// counted).
-pub fn screenshot(stream: &Path, view: &Path, mode: ViewMode, out: &Path, frames: u32) -> Result<()> {
+pub fn screenshot(
+    stream: &Path,
+    view: &Path,
+    mode: ViewMode,
+    renderer: Renderer,
+    out: &Path,
+    frames: u32,
+) -> Result<()> {
     let text = std::fs::read_to_string(view).with_context(|| format!("cannot read {}", view.display()))?;
     let camera = parse_camera(&text).with_context(|| format!("{}: bad camera", view.display()))?;
     let loaded = LoadedStream::open(stream)?;
@@ -27,7 +34,8 @@ pub fn screenshot(stream: &Path, view: &Path, mode: ViewMode, out: &Path, frames
     }
     let gpu = GpuRenderer::new()?;
     let prepared = gpu.prepare(&loaded.scene)?;
-    let (image, times) = picture(&gpu, &loaded.scene, &prepared, &camera, mode, RESIDUAL_GAIN)?;
+    let painter = Painter { gpu: &gpu, prepared: &prepared, on_cpu: renderer.on_cpu(&gpu) };
+    let (image, times) = picture(painter, &loaded.scene, &camera, mode, RESIDUAL_GAIN)?;
     image.save_png(out).with_context(|| format!("cannot write {}", out.display()))?;
     eprintln!(
         "wrote {} ({}x{}, {}) on {}: {}",
@@ -35,13 +43,13 @@ pub fn screenshot(stream: &Path, view: &Path, mode: ViewMode, out: &Path, frames
         camera.width,
         camera.height,
         mode.label(),
-        gpu.adapter_name(),
+        renderer.describe(&gpu),
         describe_times(&times)
     );
     if frames > 0 {
         let mut all = Vec::with_capacity(frames as usize);
         for _ in 0..frames {
-            all.push(picture(&gpu, &loaded.scene, &prepared, &camera, mode, RESIDUAL_GAIN)?.1);
+            all.push(picture(painter, &loaded.scene, &camera, mode, RESIDUAL_GAIN)?.1);
         }
         print_frame_rate(&all);
     }

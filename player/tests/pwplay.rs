@@ -73,20 +73,31 @@ fn headless_screenshots_match_the_cpu_reference() {
         ("residual", Some("--residual"), residual),
     ];
     for (what, flag, expected) in cases {
-        let png = out.path().join(format!("{what}.png"));
-        let mut args = vec![
-            stream_path.as_os_str(),
-            "--view".as_ref(),
-            view.as_os_str(),
-            "--screenshot".as_ref(),
-            png.as_os_str(),
-        ];
-        args.extend(flag.map(std::ffi::OsStr::new));
-        let run = pwplay(&args);
-        assert!(run.status.success(), "{what}: {}", String::from_utf8_lossy(&run.stderr));
-        let got = image::open(&png).unwrap().to_rgb8();
-        assert_eq!((got.width(), got.height()), (camera.width, camera.height), "{what}");
-        assert_within_render_tolerance(what, &expected, got.as_raw());
+        // The GPU path within the render tolerance; the CPU renderer (what a software adapter
+        // gets by default) is the reference itself.
+        for renderer in ["gpu", "cpu"] {
+            let png = out.path().join(format!("{what}-{renderer}.png"));
+            let mut args = vec![
+                stream_path.as_os_str(),
+                "--view".as_ref(),
+                view.as_os_str(),
+                "--screenshot".as_ref(),
+                png.as_os_str(),
+                "--renderer".as_ref(),
+                renderer.as_ref(),
+            ];
+            args.extend(flag.map(std::ffi::OsStr::new));
+            let run = pwplay(&args);
+            let says = String::from_utf8_lossy(&run.stderr);
+            assert!(run.status.success(), "{what} on {renderer}: {says}");
+            assert_eq!(says.contains("the CPU renderer"), renderer == "cpu", "{says}");
+            let got = image::open(&png).unwrap().to_rgb8();
+            assert_eq!((got.width(), got.height()), (camera.width, camera.height), "{what}");
+            match renderer {
+                "gpu" => assert_within_render_tolerance(what, &expected, got.as_raw()),
+                _ => assert!(&expected == got.as_raw(), "{what}: the CPU renderer's screenshot is not the reference"),
+            }
+        }
     }
 }
 

@@ -8,7 +8,7 @@ use clap::Parser;
 use pwgs_core::cli_values::parse_vector;
 use pwgs_player::app::{PlayerOptions, run};
 use pwgs_player::headless::screenshot;
-use pwgs_player::view_mode::ViewMode;
+use pwgs_player::view_mode::{Renderer, ViewMode};
 
 /// The interactive player of pwgs streams (GPU rendering through wgpu; without a GPU, Mesa's
 /// lavapipe works).
@@ -44,6 +44,11 @@ struct Args {
     /// median time of each stage and the frame rate.
     #[arg(long, requires = "view", default_value_t = 0)]
     frames: u32,
+    /// What renders the splats: `auto` is the GPU unless its adapter is a software rasterizer
+    /// (then the CPU renderer, faster on the same cores); the window and the wrapper's network
+    /// stay on wgpu.
+    #[arg(long, value_enum, default_value_t = Renderer::Auto)]
+    renderer: Renderer,
 }
 
 fn main() -> ExitCode {
@@ -64,7 +69,7 @@ fn start(args: Args) -> Result<()> {
             (_, true) => ViewMode::Residual,
             _ => ViewMode::Shown,
         };
-        return screenshot(stream, view, mode, out, args.frames);
+        return screenshot(stream, view, mode, args.renderer, out, args.frames);
     }
     run(PlayerOptions {
         stream: args.stream,
@@ -72,5 +77,6 @@ fn start(args: Args) -> Result<()> {
         downscale: args.downscale,
         up: glam::Vec3::from(args.up),
         window_screenshot: args.screenshot,
+        renderer: args.renderer,
     })
 }

@@ -181,6 +181,12 @@ impl GpuRenderer {
         Ok(GpuScene { plain, identity: identity(scene) })
     }
 
+    /// Whether the adapter is a software rasterizer (Mesa's lavapipe): one blends a tile-list
+    /// entry some 50 times slower than the CPU renderer does on the same cores.
+    pub fn is_software(&self) -> bool {
+        self.adapter.device_type == wgpu::DeviceType::Cpu
+    }
+
     /// The adapter's name and backend, for logs and the player's panel.
     pub fn adapter_name(&self) -> String {
         format!("{} ({:?})", self.adapter.name, self.adapter.backend)
@@ -220,12 +226,13 @@ impl GpuRenderer {
         let view = Window::full(camera);
         let full = ListEnds::full(order.len(), bbox, view);
         let mut windows = full.windows(self.bin_budget);
-        // Lists too long for one window are ended where their tile is surely opaque, with the
-        // bound taken of the splats as the blend pass reads them (read back: 48 bytes per
-        // Gaussian, a cost an ordinary view, whose lists fit one window, does not pay), and
-        // refused past the CPU renderer's work limit, as pwdec refuses them.
+        // Lists too long for one window, or more blend work than the limit, are ended where
+        // their tile is surely opaque, with the bound taken of the splats as the blend pass
+        // reads them (read back: 48 bytes per Gaussian, a cost an ordinary view, whose lists fit
+        // one window, does not pay), and refused past the limit, as pwdec refuses them.
+        let limit = (BlendLimit::DEFAULT, gaussians.count());
         let ends = match windows.len() {
-            1 => full,
+            1 if full.work <= limit.0.of(view, limit.1) => full,
             _ => {
                 let values = projected.splat_values(self)?;
                 let footprint = |k: usize| {
