@@ -115,8 +115,8 @@ impl Camera {
     /// A camera at `eye` looking at `target`, with `up` pointing up in the image (OpenCV's y
     /// axis points down, so it is the opposite of `up` made orthogonal to the view direction).
     pub fn look_at(intrinsics: Intrinsics, eye: Vec3, target: Vec3, up: Vec3) -> Result<Self, CameraError> {
-        let z = (target - eye).normalize_or_zero();
-        let x = (-up).cross(z).normalize_or_zero();
+        let z = unit(target - eye);
+        let x = unit((-up).cross(z));
         if z == Vec3::ZERO || x == Vec3::ZERO {
             return Err(CameraError::NonFinitePose);
         }
@@ -231,6 +231,16 @@ pub fn matrix_to_quaternion(r: Mat3) -> [f64; 4] {
     [q.w, q.x, q.y, q.z]
 }
 
+/// `v` normalized, or zero when it has no direction. A vector whose squared length overflows
+/// (components beyond about 1e19, a scene far from the origin) is scaled down first; others are
+/// normalized as they are, so ordinary cameras keep their bits.
+fn unit(v: Vec3) -> Vec3 {
+    if v.length_squared().is_finite() || !v.is_finite() {
+        return v.normalize_or_zero();
+    }
+    (v / v.abs().max_element()).normalize_or_zero()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -292,6 +302,10 @@ mod tests {
         }
         assert!(Camera::look_at(intrinsics, center, center, up).is_err());
         assert!(Camera::look_at(intrinsics, center, center + up, up).is_err(), "view along up has no roll");
+        // A scene far from the origin: the squared distance overflows binary32.
+        let far = Vec3::new(3e19, -2e19, 1e20);
+        let cam = Camera::look_at(intrinsics, far, far + Vec3::new(0.0, 4e19, 0.0), up).expect("a direction");
+        assert!(cam.rotation.is_finite() && (cam.rotation.row(2) - Vec3::Y).length() < 1e-6, "{:?}", cam.rotation);
     }
 
     #[test]
