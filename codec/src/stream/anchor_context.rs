@@ -11,6 +11,7 @@
 use std::collections::HashMap;
 
 use pwgs_bitstream::{FieldError, FieldReader, FieldWriter, Tag};
+use rayon::prelude::*;
 
 use super::DecodeError;
 use super::anchor::{QuantizedAnchors, QuantizedMlp, bounded, check_multiply_adds, exponent, within};
@@ -104,12 +105,34 @@ impl<'a> AnchorModels<'a> {
         }
     }
 
-    /// Evaluates the network for the anchor at octree coordinates `q`.
+    /// Evaluates the network for the anchor at octree coordinates `q`, and builds the tables
+    /// of its values that no anchor before it needed.
     pub fn evaluate(&mut self, q: [u32; 3]) {
         self.corners.clear();
         self.context.shape.corners(q, self.depth, &mut self.corners);
         let input = self.context.shape.context(&self.corners, &self.context.signs);
         self.mlp.forward(&input, &mut self.hidden, &mut self.out);
+        self.build_new_tables();
+    }
+
+    /// Builds the anchor's new tables on every core. A stream may need every table there is,
+    /// 64 fractions x 256 scales of up to 4,096 symbols (107 MB), from a few hundred anchors:
+    /// built one at a time as values ask for them, they took 1.1 s (release) on one core, a
+    /// constant on top of any stream's decoding. Tables are pure functions of their key, so the
+    /// order they are built in changes nothing.
+    fn build_new_tables(&mut self) {
+        let mut keys: Vec<(i32, u8)> =
+            (0..self.values).map(|t| table_key(self.model(t)).1).filter(|k| !self.tables.contains_key(k)).collect();
+        if keys.len() < 2 {
+            return;
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        let built: Vec<_> = keys
+            .into_par_iter()
+            .map(|(fraction, scale)| ((fraction, scale), GaussianModel { mean: fraction, scale }.table()))
+            .collect();
+        self.tables.extend(built);
     }
 
     /// The model of value `t` (features, then scaling, then offsets 3j + a) of the anchor last
@@ -120,12 +143,9 @@ impl<'a> AnchorModels<'a> {
 
     /// The table of value `t` and how far it moves.
     fn table(&mut self, t: usize) -> (&FrequencyTable, i32) {
-        let model = self.model(t);
-        let (whole, fraction) = (model.mean.div_euclid(MEAN_DENOMINATOR), model.mean.rem_euclid(MEAN_DENOMINATOR));
-        let table = self
-            .tables
-            .entry((fraction, model.scale))
-            .or_insert_with(|| GaussianModel { mean: fraction, scale: model.scale }.table());
+        let (whole, (fraction, scale)) = table_key(self.model(t));
+        let table =
+            self.tables.entry((fraction, scale)).or_insert_with(|| GaussianModel { mean: fraction, scale }.table());
         (table, whole)
     }
 
@@ -138,6 +158,12 @@ impl<'a> AnchorModels<'a> {
         let (table, shift) = self.table(t);
         coder.shifted_value(table, shift)
     }
+}
+
+/// How far a model's table moves (the whole part of its mean) and the key of the table: its
+/// mean's fraction (in 64ths) and its scale.
+fn table_key(model: GaussianModel) -> (i32, (i32, u8)) {
+    (model.mean.div_euclid(MEAN_DENOMINATOR), (model.mean.rem_euclid(MEAN_DENOMINATOR), model.scale))
 }
 
 impl QuantizedContext {
