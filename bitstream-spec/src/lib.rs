@@ -3,6 +3,7 @@
 //! little-endian field syntax used inside sections.
 //!
 //! This crate knows nothing about Gaussians: it turns bytes into verified sections and back.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))]
 //! What a section means is the decoder's business (`pwgs-decoder`'s `stream` module).
 
 mod container;

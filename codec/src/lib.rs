@@ -3,6 +3,10 @@
 //! networks and context model), the perceptual wrapper's noise pyramid, Plücker embeddings and
 //! network, and the portable math they use. The encoder calls these instead of re-implementing
 //! them; renderers take what they reconstruct.
+//!
+//! The whole crate keeps to the determinism rule: no platform math (clippy.toml) outside its
+//! tests, so that every machine decodes the same bits.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))]
 
 pub mod anchor;
 pub mod context_grid;

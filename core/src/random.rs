@@ -1,6 +1,7 @@
 //! The deterministic random numbers of pwgs: SplitMix64, whose output function also drives the
 //! wrapper's normative noise (SPEC.md section 11.1), and random Gaussian scenes for tests and
 //! benchmarks, identical on every machine and every run.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 use glam::{Mat3, Vec3};
 

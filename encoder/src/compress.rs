@@ -1,6 +1,7 @@
 //! Turning trained Gaussians into a stream: the encoder's choices (quantization steps, grid
 //! resolution, what to drop), then the decoder library's writer, then the decoder library's
 //! reader, so that what the encoder evaluates is exactly what a decoder will show.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 mod grid;
 

@@ -9,6 +9,7 @@
 //! sphere (the points on a grid cube's surface), so that no way round is favoured, and they
 //! need no trigonometry: with `+ - * / sqrt` only, the classes, and so the stream,
 //! are the same on every machine.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 use glam::Vec3;
 use pwgs_codec::stream::classes::ImportanceClasses;

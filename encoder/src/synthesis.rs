@@ -5,6 +5,7 @@
 //!
 //! Choosing the quantization steps is also here: the encoder evaluates exactly the weights the
 //! stream will hold.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 use burn::tensor::activation::relu;
 use burn::tensor::module::conv2d;

@@ -134,10 +134,11 @@ impl FrequencyTable {
     }
 
     /// Ideal code length of a value in bits (for rate reports; not normative).
+    #[expect(clippy::disallowed_methods, reason = "a rate report only: no stream depends on it")]
     pub fn cost_bits(&self, value: i32) -> f64 {
         let (symbol, escaped) = self.symbol_of(value);
         let p = f64::from(self.cdf[symbol as usize + 1] - self.cdf[symbol as usize]) / f64::from(TOTAL);
-        -p.log2() + if escaped { 32.0 } else { 0.0 } // platform math allowed: a rate report only
+        -p.log2() + if escaped { 32.0 } else { 0.0 }
     }
 
     fn symbol_of(&self, value: i32) -> (u32, bool) {

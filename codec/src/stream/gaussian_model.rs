@@ -104,7 +104,9 @@ impl GaussianModel {
         let average = values.iter().map(|&v| f64::from(v)).sum::<f64>() / count;
         let variance = values.iter().map(|&v| (f64::from(v) - average) * (f64::from(v) - average)).sum::<f64>() / count;
         let mean = ((average * f64::from(MEAN_DENOMINATOR)).round() as i64).clamp(-(MAX_MEAN as i64), MAX_MEAN as i64);
-        let guess = (variance.sqrt().max(1e-6).log2() * 8.0).round() as i32 + SCALE_OFFSET; // platform math allowed: the encoder's guess
+        // The scales tried around this guess are costed exactly; the guess only narrows them.
+        #[expect(clippy::disallowed_methods, reason = "the encoder's guess, not normative")]
+        let guess = (variance.sqrt().max(1e-6).log2() * 8.0).round() as i32 + SCALE_OFFSET;
         let candidates = (guess - 8..=guess + 8).filter_map(|j| u8::try_from(j).ok());
         candidates
             .map(|scale| Self { mean: mean as i32, scale })

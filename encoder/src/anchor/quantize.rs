@@ -2,6 +2,7 @@
 //! anchor positions as integer voxel coordinates, per-anchor attributes as multiples of their
 //! steps, MLP weights as multiples of power-of-two steps. The decoder's reconstruction of the
 //! result is the model every view is rendered from, so evaluation always goes through it.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 use anyhow::{Result, bail, ensure};
 use pwgs_codec::anchor::{AnchorModel, Mlp};

@@ -7,6 +7,7 @@
 //!
 //! Rendering is not normative bit for bit (docs/architecture.md section 3); this implementation
 //! is the one GPU renderers and the encoder's backward pass are checked against.
+#![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 pub mod alpha_lanes;
 pub mod blend;
