@@ -1,23 +1,16 @@
-//! The pwgs encoder library: initialization, the rasterizer's backward pass and its Burn
-//! operation, training, evaluation, metrics, and whole encoder runs (`session`). Scene loading lives in the `pwgs-dataset`
-//! crate beside it, rendering and everything normative in `pwgs-decoder`.
+//! The pwgs encoder library, in folders that mirror the method: [`plain`] (plain 3DGS: its
+//! training and densification, and turning trained or imported Gaussians into a stream),
+//! [`anchor`] (the anchor base), [`wrapper`] (the perceptual wrapper's synthesis network and
+//! its training stage), [`train`] (what both bases' training shares: the rasterizer's backward
+//! pass as a Burn operation, the parameters and Adam), [`metrics`] (image quality and
+//! evaluation), and [`session`] (whole encoder runs). Scene loading lives in `pwgs-dataset`,
+//! rendering in `pwgs-render`, everything normative in `pwgs-codec`.
 
 pub mod anchor;
-pub mod backward;
-pub mod colour_refit;
-pub mod compress;
-pub mod evaluate;
 pub mod exit;
-pub mod fidelity;
-pub mod heap;
-pub mod importance;
-pub mod init;
 pub mod metrics;
-pub mod rotation_frame;
+pub mod plain;
 pub mod session;
-pub mod shape_refit;
 pub mod size_fit;
-pub mod splat_op;
-pub mod step_search;
-pub mod synthesis;
 pub mod train;
+pub mod wrapper;

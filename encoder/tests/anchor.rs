@@ -16,7 +16,7 @@ use pwgs_encoder::anchor::network_steps::{
 };
 use pwgs_encoder::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use pwgs_encoder::anchor::train::AnchorTrainer;
-use pwgs_encoder::evaluate::{MeanScore, evaluate};
+use pwgs_encoder::metrics::evaluate::{MeanScore, evaluate};
 
 /// A generated scene in `dir` and its initial anchor model (F = 8, K = 4, voxels of 5% of the
 /// scene's scale), with the grid the anchors sit on.

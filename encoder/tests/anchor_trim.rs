@@ -10,7 +10,7 @@ use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
 use pwgs_encoder::anchor::quantize::{AnchorSteps, quantize};
 use pwgs_encoder::anchor::train::AnchorTrainer;
 use pwgs_encoder::anchor::trim::{anchor_importance, fit_anchors, keep_anchors};
-use pwgs_encoder::evaluate::{MeanScore, evaluate};
+use pwgs_encoder::metrics::evaluate::{MeanScore, evaluate};
 
 #[test]
 fn anchor_streams_are_cut_to_size_keeping_what_shows_most() {

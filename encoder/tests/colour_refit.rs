@@ -2,10 +2,10 @@
 //! the views they were fitted on, and change nothing but the colours.
 
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::colour_refit::refit_colours;
-use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size, reconstruction};
-use pwgs_encoder::importance::blend_weights;
 use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_encoder::plain::colour_refit::refit_colours;
+use pwgs_encoder::plain::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size, reconstruction};
+use pwgs_encoder::plain::importance::blend_weights;
 use pwgs_render::raster::{RenderOptions, render};
 
 #[test]

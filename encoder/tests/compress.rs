@@ -4,8 +4,10 @@
 use pwgs_codec::stream;
 use pwgs_core::gaussians::sh_coeff_count;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress, compress_to_size};
 use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_encoder::plain::compress::{
+    Coding, CompressError, QuantizerSettings, StreamContext, compress, compress_to_size,
+};
 use pwgs_render::raster::{RenderOptions, render};
 
 fn scene() -> pwgs_core::gaussians::Gaussians {
@@ -91,7 +93,7 @@ fn gaussians_sharing_a_cell_refine_the_grid() {
 #[test]
 fn quality_steps_are_exact_powers_of_sqrt2() {
     let default = QuantizerSettings::default();
-    for q in 0..=pwgs_encoder::compress::MAX_QUALITY {
+    for q in 0..=pwgs_encoder::plain::compress::MAX_QUALITY {
         let s = QuantizerSettings::for_quality(q);
         let k = 5 - i32::from(q);
         // sqrt(2)^k: a power of two, times SQRT_2 for odd k.

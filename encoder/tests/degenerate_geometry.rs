@@ -5,7 +5,7 @@
 
 use pwgs_codec::stream;
 use pwgs_core::gaussians::Gaussians;
-use pwgs_encoder::compress::{
+use pwgs_encoder::plain::compress::{
     Coding, CompressError, Compressed, QuantizerSettings, StreamContext, compress, reconstruction,
 };
 
@@ -103,7 +103,7 @@ fn importance_weights_choose_what_a_pile_keeps() {
         let (keep, decoded) = reconstruction(&g, coding, &context).unwrap();
         assert_eq!(keep, (0..255).chain(300..n).collect::<Vec<_>>());
         assert!(decoded.means[..255].iter().all(|&m| (0..3).all(|a| (m[a] - at[a]).abs() < 1e-4)));
-        let c = pwgs_encoder::compress::compress_to_size(&g, coding, &context, None, usize::MAX).unwrap();
+        let c = pwgs_encoder::plain::compress::compress_to_size(&g, coding, &context, None, usize::MAX).unwrap();
         assert_eq!((c.decoded.header.gaussian_count as usize, c.crowded), (keep.len(), 45));
         assert_eq!(stream::decode(&c.bytes).unwrap(), c.decoded);
     }

@@ -8,7 +8,7 @@
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::backward::backward;
+use pwgs_encoder::train::backward::backward;
 use pwgs_render::raster::{Cutoff, RenderOptions, rasterize};
 
 struct Case {
@@ -59,7 +59,7 @@ impl Kind {
         }
     }
 
-    fn analytic(self, grads: &pwgs_encoder::backward::Gradients, g: &Gaussians, i: usize, slot: usize) -> f64 {
+    fn analytic(self, grads: &pwgs_encoder::train::backward::Gradients, g: &Gaussians, i: usize, slot: usize) -> f64 {
         let k = g.coeffs_per_channel() * 3;
         (match self {
             Kind::Mean => grads.means[i][slot],
@@ -162,7 +162,7 @@ fn near_camera_gaussians() {
 /// saturated pixels.
 #[test]
 fn vectorized_backward_matches_the_scalar_walk() {
-    use pwgs_encoder::backward::blend::blend_backward;
+    use pwgs_encoder::train::backward::blend::blend_backward;
     use pwgs_render::raster::BlendPath;
     for (seed, n, (w, h), cutoff) in
         [(31u64, 400, (64, 48), Cutoff::Hard), (32, 1500, (53, 37), Cutoff::Smooth), (33, 80, (17, 30), Cutoff::Hard)]
@@ -178,7 +178,7 @@ fn vectorized_backward_matches_the_scalar_walk() {
         // Each path walks back through its own forward pass (the vector one's alphas differ
         // from the scalar one's in the last bits: see the forward pass's test).
         let grads = |blend| blend_backward(&rendered(blend), &RenderOptions { blend, ..options }, &v_color);
-        let flat = |gs: &[pwgs_encoder::backward::blend::SplatGrad]| -> Vec<f64> {
+        let flat = |gs: &[pwgs_encoder::train::backward::blend::SplatGrad]| -> Vec<f64> {
             gs.iter().flat_map(|g| g.mean.into_iter().chain(g.conic).chain([g.opacity]).chain(g.color)).collect()
         };
         let a = flat(&grads(BlendPath::Scalar));

@@ -5,9 +5,9 @@
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 #[test]
 fn the_process_restarts_once_with_the_heap_tunables() {
-    pwgs_encoder::heap::restart_with_tunables();
+    pwgs_encoder::train::heap::restart_with_tunables();
     // Only the restarted process gets here; a second call must not restart it again.
-    pwgs_encoder::heap::restart_with_tunables();
+    pwgs_encoder::train::heap::restart_with_tunables();
     let tunables = std::env::var("GLIBC_TUNABLES").expect("the restarted process has GLIBC_TUNABLES");
     assert!(tunables.starts_with("glibc.malloc.mmap_threshold=33554432:"), "{tunables}");
     assert!(tunables.contains("glibc.malloc.trim_threshold=1073741824"), "{tunables}");

@@ -5,9 +5,9 @@ use pwgs_codec::stream::Content;
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
-use pwgs_encoder::importance::blend_weights;
 use pwgs_encoder::metrics::psnr::psnr;
+use pwgs_encoder::plain::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
+use pwgs_encoder::plain::importance::blend_weights;
 use pwgs_render::raster::{RenderOptions, render};
 
 /// Random Gaussians in front of [`camera`], 4000 of them, so that many hide others.

@@ -6,11 +6,11 @@
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::colour_refit::refit_colours;
-use pwgs_encoder::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
-use pwgs_encoder::importance::blend_weights;
 use pwgs_encoder::metrics::psnr::psnr;
-use pwgs_encoder::shape_refit::refit_shapes;
+use pwgs_encoder::plain::colour_refit::refit_colours;
+use pwgs_encoder::plain::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
+use pwgs_encoder::plain::importance::blend_weights;
+use pwgs_encoder::plain::shape_refit::refit_shapes;
 use pwgs_render::raster::{RenderOptions, render};
 
 /// Two views of `g`, its blend weights in them and its stream context.
@@ -49,7 +49,7 @@ fn refitted_shapes_render_closer_at_the_same_positions() {
     let (colours_alone, both) = (stream(&colours(&g)), stream(&colours(&shaped)));
     for camera in &cameras {
         let truth = render(&g, camera, &options);
-        let score = |s: &pwgs_encoder::compress::Compressed| {
+        let score = |s: &pwgs_encoder::plain::compress::Compressed| {
             psnr(&render(s.decoded.scene.plain_gaussians().unwrap(), camera, &options), &truth)
         };
         // Measured: 34.50 -> 36.13 dB and 37.13 -> 38.71 dB with the shapes refitted (and two

@@ -4,8 +4,8 @@
 use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::backward::backward;
-use pwgs_encoder::splat_op::{SplatView, render};
+use pwgs_encoder::train::backward::backward;
+use pwgs_encoder::train::splat_op::{SplatView, render};
 use pwgs_render::raster::{RenderOptions, Window, rasterize};
 
 struct Params {

@@ -3,9 +3,9 @@
 
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
-use pwgs_encoder::compress::{QuantizerSettings, StreamContext};
-use pwgs_encoder::importance::blend_weights;
-use pwgs_encoder::step_search::{KNOBS, Notches, Probe, search};
+use pwgs_encoder::plain::compress::{QuantizerSettings, StreamContext};
+use pwgs_encoder::plain::importance::blend_weights;
+use pwgs_encoder::plain::step_search::{KNOBS, Notches, Probe, search};
 use pwgs_render::raster::RenderOptions;
 
 /// Round Gaussians (three equal scales): their rotation cannot show in any render.

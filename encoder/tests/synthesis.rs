@@ -8,7 +8,7 @@ use pwgs_codec::wrapper::synthesis::{SynthesisWeights, WrapperConfig};
 use pwgs_core::camera::{Camera, Intrinsics};
 use pwgs_core::frame::SceneFrame;
 use pwgs_core::random::SplitMix64;
-use pwgs_encoder::synthesis::{flat_tensor, forward};
+use pwgs_encoder::wrapper::synthesis::{flat_tensor, forward};
 
 fn values(t: Tensor<4>) -> Vec<f32> {
     t.into_data().convert::<f32>().try_into_vec::<f32>().unwrap()

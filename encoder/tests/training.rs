@@ -5,10 +5,10 @@ use burn::tensor::Device;
 use pwgs_codec::scene::{Base, Scene};
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
-use pwgs_encoder::compress::{QuantizerSettings, StreamContext, compress};
-use pwgs_encoder::evaluate::{MeanScore, evaluate};
-use pwgs_encoder::init::initial_gaussians;
-use pwgs_encoder::train::{TrainConfig, Trainer, train};
+use pwgs_encoder::metrics::evaluate::{MeanScore, evaluate};
+use pwgs_encoder::plain::compress::{QuantizerSettings, StreamContext, compress};
+use pwgs_encoder::plain::init::initial_gaussians;
+use pwgs_encoder::plain::train::{TrainConfig, Trainer, train};
 
 fn small_scene(dir: &std::path::Path) -> Dataset {
     let options = SyntheticOptions { width: 80, height: 60, views: 16, seed: 4, points: 1500 };
@@ -97,10 +97,10 @@ fn training_resumes_from_an_exported_ply() {
 /// Stage 2's pixel term adds the base's own objective on the crop of the base render to WD:
 /// the same first step with and without it differs by a loss in (0, 1].
 /// Pixel-feature stage-2 settings from the first iteration on, for the tests.
-fn stage_two_settings(pixel_weight: f32, base_lr_scale: f32) -> pwgs_encoder::train::WrapperTraining {
+fn stage_two_settings(pixel_weight: f32, base_lr_scale: f32) -> pwgs_encoder::wrapper::stage::WrapperTraining {
     use pwgs_codec::wrapper::synthesis::WrapperConfig;
     use pwgs_encoder::metrics::sigma_map::Log2Sigma;
-    use pwgs_encoder::train::{WdFeatures, WrapperTraining};
+    use pwgs_encoder::wrapper::stage::{WdFeatures, WrapperTraining};
     WrapperTraining {
         config: WrapperConfig { width: 4, noise: true, plucker: false, seed: 3 },
         start: 0,

@@ -9,15 +9,10 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use pwgs_bitstream::{Container, SECTION_OVERHEAD};
 use pwgs_codec::anchor::AnchorModel;
 use pwgs_codec::scene::{Base, Scene};
 use pwgs_codec::stream;
-use pwgs_codec::stream::anchor_context::CONTEXT;
-use pwgs_codec::stream::classes::CLASSES;
-use pwgs_codec::stream::header::{BaseKind, Header};
-use pwgs_codec::stream::trees::{ADAPTIVE, BLOCKS};
-use pwgs_codec::stream::wrap::{QuantizedSynthesis, WRAPPER};
+use pwgs_codec::stream::header::Header;
 use pwgs_codec::wrapper::residual_picture;
 use pwgs_core::atomic_file::write_atomically;
 use pwgs_core::camera::Camera;
@@ -136,88 +131,13 @@ fn read_stream(path: &Path) -> Result<Vec<u8>> {
 
 fn info(path: &Path) -> Result<()> {
     let bytes = read_stream(path)?;
-    let (container, header) =
-        stream::parse(&bytes).with_context(|| format!("{} is not a valid stream", path.display()))?;
-    print_info(path, &bytes, &container, &header);
-    if container.section(CONTEXT).is_some() {
-        // The grid's size depends on the positions' octree: shown from a full decode.
-        let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
-        if let stream::Content::Anchors(a) = &decoded.content
-            && let Some(c) = &a.context
-        {
-            say!(
-                "context       levels {:?}, plane levels {:?} (2^r cells per axis), 2^{} entries per hashed grid, \
-                 {} channels: {} entries; network width {}, steps 2^{} / 2^{}",
-                c.shape.levels,
-                c.shape.planes,
-                c.shape.table_log2,
-                c.shape.channels,
-                c.shape.entries(a.grid.depth),
-                c.mlp.hidden,
-                c.mlp.weight_exponent,
-                c.mlp.bias_exponent
-            );
-        }
-    }
-    if container.section(CLASSES).is_some() {
-        let decoded = stream::decode(&bytes).with_context(|| format!("cannot decode {}", path.display()))?;
-        if let stream::Content::Plain(p) = &decoded.content
-            && let Some(c) = &p.classes
-        {
-            let counts: Vec<usize> =
-                (0..c.factors.len()).map(|k| c.of.iter().filter(|&&x| usize::from(x) == k).count()).collect();
-            say!(
-                "importance    {} classes, Gaussians per class {counts:?}; position grid {} levels finer than POSN's, \
-                 levels dropped per class {:?}",
-                c.factors.len(),
-                c.refine,
-                c.drops
-            );
-        }
-    }
-    if let Some(section) = container.section(ADAPTIVE) {
-        // The payload's bits as stored (checked when the stream is decoded, not here).
-        let mask = section.payload.first().copied().unwrap_or(0);
-        let named: Vec<String> =
-            BLOCKS.iter().enumerate().filter(|&(k, _)| mask >> k & 1 == 1).map(|(_, tag)| tag.to_string()).collect();
-        let named = if named.is_empty() { "no block".to_string() } else { named.join(", ") };
-        say!("tree coding   {named} (ADPT: adaptive trees; the other blocks with frequency tables)");
-    }
-    if let Some(section) = container.section(WRAPPER) {
-        let w = QuantizedSynthesis::read(section.payload, container.minor)
-            .with_context(|| format!("{}: bad wrapper section", path.display()))?;
-        let c = w.config;
-        say!(
-            "wrapper       width {}, noise {}, plücker {}, seed {:#018x}, steps 2^{} / 2^{} ({} parameters)",
-            c.width,
-            if c.noise { "on" } else { "off" },
-            if c.plucker { "on" } else { "off" },
-            c.seed,
-            w.weight_exponent,
-            w.bias_exponent,
-            w.values.len()
-        );
+    let lines =
+        stream::describe::describe(&bytes).with_context(|| format!("{} is not a valid stream", path.display()))?;
+    say!("stream        {} ({} bytes)", path.display(), bytes.len());
+    for line in lines {
+        say!("{line}");
     }
     Ok(())
-}
-
-fn print_info(path: &Path, bytes: &[u8], container: &Container, header: &stream::header::Header) {
-    say!("stream        {} ({} bytes)", path.display(), bytes.len());
-    say!("version       {}.{}", container.major, container.minor);
-    say!("base          {}", header.base.name());
-    match header.base {
-        BaseKind::Plain3dgs => say!("gaussians     {}", header.gaussian_count),
-        BaseKind::Anchors => say!("anchors       {}", header.gaussian_count),
-    }
-    say!("sh degree     {}", header.sh_degree);
-    say!("normalization center {:?}, scale {}", header.center, header.scale);
-    say!("background    {:?}", header.background);
-    say!("sections      (bytes incl. 12 bytes of tag, length and CRC)");
-    for s in &container.sections {
-        let share = 100.0 * (s.payload.len() + SECTION_OVERHEAD) as f64 / bytes.len() as f64;
-        let kind = if s.tag.is_critical() { "" } else { "  (optional)" };
-        say!("  {}  {:>10}  {share:5.1}%{kind}", s.tag, s.payload.len() + SECTION_OVERHEAD);
-    }
 }
 
 fn decode(args: DecodeArgs) -> Result<()> {

@@ -5,6 +5,7 @@ pub mod anchor;
 pub mod anchor_context;
 pub mod classes;
 pub mod colour_differences;
+pub mod describe;
 pub mod entropy;
 pub mod gaussian_model;
 pub mod header;

@@ -19,7 +19,7 @@ use std::collections::{BTreeMap, HashSet};
 
 use pwgs_core::random::SplitMix64;
 
-use crate::train::densify::GradStats;
+use crate::plain::densify::GradStats;
 
 /// Levels of growth and the cell of the coarsest, in voxels (Scaffold-GS's `update_depth` and
 /// `update_init_factor`); each level's cell is 4x smaller and its threshold 2x larger.

@@ -11,7 +11,7 @@ use pwgs_core::ply::PointCloud;
 use pwgs_core::random::SplitMix64;
 
 use super::quantize::anchor_grid;
-use crate::init::gaussians_from_points;
+use crate::plain::init::gaussians_from_points;
 
 /// The shape of an anchor model.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -3,6 +3,7 @@
 
 mod depthwise;
 pub mod dists;
+pub mod evaluate;
 pub mod image_tensor;
 mod lowpass_op;
 pub mod lpips;

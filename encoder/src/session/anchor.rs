@@ -23,8 +23,8 @@ use crate::anchor::network_steps::{StepCandidate, StepObjective, choose_context_
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
 use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::anchor::trim::fit_anchors;
-use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
-use crate::train::WrapperTraining;
+use crate::metrics::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use crate::wrapper::stage::WrapperTraining;
 use pwgs_codec::scene::Base;
 use pwgs_codec::stream::anchor::QuantizedAnchors;
 use pwgs_codec::stream::wrap::QuantizedSynthesis;

@@ -17,9 +17,9 @@ use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
 use super::{Orbit, check_outputs, read_model, write_report};
-use crate::compress::StreamContext;
-use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
-use crate::fidelity::{orbit_cameras, renders};
+use crate::metrics::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use crate::plain::compress::StreamContext;
+use crate::plain::fidelity::{orbit_cameras, renders};
 
 /// Everything a comparison does.
 #[derive(Debug, Clone)]

@@ -14,13 +14,13 @@ use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
 use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};
-use crate::colour_refit::{self, RefitOutcome};
-use crate::compress::{Coding, QuantizerSettings, StreamContext};
-use crate::fidelity::{orbit_cameras, renders};
-use crate::importance;
 use crate::metrics::psnr::{psnr, psnr_of_mse};
-use crate::shape_refit::{self, ShapeRefitOutcome};
-use crate::step_search::{self, KNOBS, Probe, SearchOutcome};
+use crate::plain::colour_refit::{self, RefitOutcome};
+use crate::plain::compress::{Coding, QuantizerSettings, StreamContext};
+use crate::plain::fidelity::{orbit_cameras, renders};
+use crate::plain::importance;
+use crate::plain::shape_refit::{self, ShapeRefitOutcome};
+use crate::plain::step_search::{self, KNOBS, Probe, SearchOutcome};
 
 /// Views on a circle around the model, rendered from the input and from the decoded stream.
 #[derive(Debug, Clone)]

@@ -19,8 +19,8 @@ use pwgs_core::say;
 use pwgs_core::splat_file::SpzAxes;
 use serde::Serialize;
 
-use crate::compress::{Coding, Compressed, QuantizerSettings, StreamContext, compress_to_size};
-use crate::synthesis::{QuantizationSample, choose_quantization};
+use crate::plain::compress::{Coding, Compressed, QuantizerSettings, StreamContext, compress_to_size};
+use crate::wrapper::synthesis::{QuantizationSample, choose_quantization};
 use pwgs_codec::wrapper::conditioning;
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::camera::Camera;
@@ -36,7 +36,7 @@ pub use scene::{Report, SceneJob, encode_scene};
 #[derive(Debug, Clone)]
 pub struct StreamOptions {
     pub path: PathBuf,
-    /// 0 (smallest) to [`MAX_QUALITY`](crate::compress::MAX_QUALITY).
+    /// 0 (smallest) to [`MAX_QUALITY`](crate::plain::compress::MAX_QUALITY).
     pub quality: u8,
     /// Largest stream size in bytes; the least important Gaussians are dropped to fit.
     pub target_bytes: Option<u64>,

@@ -19,10 +19,10 @@ use super::{
     StreamOptions, StreamSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, read_ply,
     write_report, write_stream,
 };
-use crate::compress::{QuantizerSettings, StreamContext};
-use crate::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
-use crate::init::initial_gaussians;
-use crate::train::{TrainConfig, TrainSummary, Trainer, train};
+use crate::metrics::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use crate::plain::compress::{QuantizerSettings, StreamContext};
+use crate::plain::init::initial_gaussians;
+use crate::plain::train::{TrainConfig, TrainSummary, Trainer, train};
 
 /// Everything a training run does. `config.background` is also the scene's background.
 #[derive(Debug, Clone)]

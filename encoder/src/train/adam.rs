@@ -79,7 +79,7 @@ impl Moments {
 }
 
 /// Adam on a plain slice of parameters, for the refits that run the rasterizer's gradients
-/// without Burn ([`crate::shape_refit`]): the same moments and bias correction as [`direction`].
+/// without Burn ([`crate::plain::shape_refit`]): the same moments and bias correction as [`direction`].
 #[derive(Debug, Clone)]
 pub struct SliceAdam {
     first: Vec<f32>,

@@ -4,7 +4,7 @@
 //! ranges, as an INRIA PLY, a `.splat` and SOG archives. Every value is written exactly (no
 //! platform `exp` or `ln`), so the bytes are the same on every machine.
 //!
-//! What the encoder does with them (`encoder/src/compress.rs`): a cell of the finest grid that
+//! What the encoder does with them (`encoder/src/plain/compress.rs`): a cell of the finest grid that
 //! more than 255 Gaussians share keeps its 255 most important (the rest are dropped, with a
 //! warning); positions that no grid within binary32 reaches are refused by name.
 

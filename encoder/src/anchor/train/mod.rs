@@ -15,7 +15,7 @@
 //!
 //! With a [`WrapperTraining`], stage 2 (from its start iteration) scores a crop of each step's
 //! view with WD through the perceptual wrapper f, which trains jointly, exactly as on the plain
-//! base ([`crate::train::wrapper_stage`]); the rate term stays on, its λ scaled to WD's size
+//! base ([`crate::wrapper::stage`]); the rate term stays on, its λ scaled to WD's size
 //! ([`StageTwoLambda`]).
 //!
 //! With a context model ([`super::context`]), the rate's means and scales come per anchor
@@ -50,10 +50,10 @@ use super::host::{host_tensor, mlp_of, mlp_tensors};
 use super::quantize::{AnchorSteps, TrainedContext};
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::metrics::vgg_wasserstein::VggWasserstein;
-use crate::splat_op::{SplatView, render};
 use crate::train::adam::direction;
 use crate::train::params::tensor_values;
-use crate::train::{WrapperStage, WrapperTraining};
+use crate::train::splat_op::{SplatView, render};
+use crate::wrapper::stage::{WrapperStage, WrapperTraining};
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::frame::SceneFrame;
 

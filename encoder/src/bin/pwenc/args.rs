@@ -9,13 +9,13 @@ use pwgs_core::cli_values::parse_vector;
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_encoder::anchor::quantize::AnchorSteps;
 use pwgs_encoder::anchor::train::{ANCHOR_STAGE_TWO_LR_SCALE, StageTwoLambda};
-use pwgs_encoder::compress::{DEFAULT_QUALITY, MAX_QUALITY};
-use pwgs_encoder::evaluate::EvalOptions;
+use pwgs_encoder::metrics::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};
 use pwgs_encoder::metrics::weights::default_dirs;
+use pwgs_encoder::plain::compress::{DEFAULT_QUALITY, MAX_QUALITY};
+use pwgs_encoder::plain::train::TrainConfig;
 use pwgs_encoder::session::{AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions};
-use pwgs_encoder::train::TrainConfig;
 
 use crate::values::{
     SpzAxesArg, check_extra_metrics, parse_color, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight,

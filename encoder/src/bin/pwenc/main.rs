@@ -89,7 +89,7 @@ fn encode(args: EncodeArgs, matches: &ArgMatches) -> Result<()> {
 }
 
 fn main() -> ExitCode {
-    pwgs_encoder::heap::restart_with_tunables();
+    pwgs_encoder::train::heap::restart_with_tunables();
     let matches = Cli::command().get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     pwgs_encoder::exit::report(run(cli, &matches))

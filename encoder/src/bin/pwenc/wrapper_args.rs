@@ -10,8 +10,8 @@ use pwgs_core::random::SplitMix64;
 use pwgs_encoder::metrics::sigma_map::{LEVELS, Log2Sigma, SigmaMap};
 use pwgs_encoder::metrics::vgg_wasserstein::{IMAGE_SCALES, MIN_SIDE, WdDepth};
 use pwgs_encoder::metrics::vgg16::VGG_BLOCKS;
-use pwgs_encoder::train::wrapper_stage::{DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS, DEFAULT_WD_SCALES};
-use pwgs_encoder::train::{WdFeatures, WrapperTraining};
+use pwgs_encoder::wrapper::stage::{DEFAULT_CROPS_PER_VIEW, DEFAULT_MIN_STEPS, DEFAULT_WD_SCALES};
+use pwgs_encoder::wrapper::stage::{WdFeatures, WrapperTraining};
 
 use crate::values::parse_weight;
 

@@ -18,7 +18,7 @@ use pwgs_render::raster::{RenderOptions, Rendered, rasterize, render};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::compress::{Coding, CompressError, StreamContext, reconstruction};
+use crate::plain::compress::{Coding, CompressError, StreamContext, reconstruction};
 
 /// What a refit did, on its views: the mean squared error of the reconstruction's renders
 /// against the model's before, and of the linear model after each iteration (those after
@@ -34,7 +34,7 @@ pub struct RefitOutcome {
 /// `g` with the colours (the SH DC terms) of the Gaussians `coding` keeps refitted, over
 /// `iterations` iterations, so that its reconstruction renders closest to `reference` on
 /// `cameras`: the model itself, or the input when `g` is already refitted
-/// ([`crate::shape_refit`]) and no longer renders like it.
+/// ([`crate::plain::shape_refit`]) and no longer renders like it.
 pub fn refit_colours(
     (g, reference): (&Gaussians, &Gaussians),
     coding: Coding,

@@ -19,7 +19,7 @@ use pwgs_render::raster::blend::splat_weights;
 use pwgs_render::raster::{RenderOptions, Window, tiles, visible_splats};
 use rayon::prelude::*;
 
-use crate::compress::{StreamContext, sqrt2_power};
+use crate::plain::compress::{StreamContext, sqrt2_power};
 
 /// Width and height of the views.
 pub const VIEW_SIZE: u32 = 512;

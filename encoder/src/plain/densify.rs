@@ -8,7 +8,7 @@ use pwgs_core::gaussians::opacity_to_logit;
 use pwgs_core::random::SplitMix64;
 use pwgs_render::raster::project::{rotation_matrix, sigmoid};
 
-use super::params::{PARAM_COUNT, Rows};
+use crate::train::params::{PARAM_COUNT, Rows};
 
 /// Thresholds of the density control (3DGS defaults).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -26,9 +26,9 @@ use pwgs_core::rgb_image::RgbImage;
 use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
-use crate::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress_to_size, sqrt2_power};
-use crate::fidelity::renders;
 use crate::metrics::psnr::mse;
+use crate::plain::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress_to_size, sqrt2_power};
+use crate::plain::fidelity::renders;
 
 /// The knobs, each moved in notches from the quality level's settings.
 pub const KNOBS: [&str; 7] = ["scale", "rotation", "opacity", "colour", "position", "class spread", "faint floor"];

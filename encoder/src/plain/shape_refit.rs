@@ -3,7 +3,7 @@
 //! quality 11 about 40% of it, pruning another 28%), and no other attribute's step can undo a
 //! shift: but the Gaussians around a moved or dropped one can lean into the gap. With every
 //! kept Gaussian at its decoded position, a few epochs of Adam on the rasterizer's analytic
-//! gradients ([`crate::backward`]) move the scales, rotations, opacities and SH (the bands the
+//! gradients ([`crate::train::backward`]) move the scales, rotations, opacities and SH (the bands the
 //! model uses) so that the model renders closest to itself on the importance views. The
 //! refitted values then go through the same quantizer as any other; nothing in the stream
 //! changes but their values.
@@ -11,7 +11,7 @@
 //! Most of what the refit gains is finer than the quantizer's steps and goes when they are
 //! rounded (on biker at quality 11: 56.8 -> 58.4 dB on the views over 6 epochs, then 56.4 dB
 //! once quantized, against 55.0 dB without the refit); what stays is a better start for
-//! [`crate::colour_refit`], which must then fit the input's renders, not the refitted model's
+//! [`crate::plain::colour_refit`], which must then fit the input's renders, not the refitted model's
 //! (at the input's positions that model no longer renders like the input). Together they reach
 //! 58.25 dB on biker's orbit against 58.00 dB for the colours alone.
 
@@ -23,10 +23,10 @@ use pwgs_render::raster::{RenderOptions, rasterize, render};
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::backward::backward;
-use crate::compress::{Coding, CompressError, QuantizerSettings, StreamContext, reconstruction};
 use crate::metrics::psnr::mse;
+use crate::plain::compress::{Coding, CompressError, QuantizerSettings, StreamContext, reconstruction};
 use crate::train::adam::SliceAdam;
+use crate::train::backward::backward;
 
 /// The optimizer's rate for each attribute, as a fraction of that attribute's quantizer step
 /// at the quality being coded, so that one setting suits every quality. On biker at quality 11

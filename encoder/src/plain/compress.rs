@@ -14,8 +14,8 @@ use pwgs_codec::stream::wrap::QuantizedSynthesis;
 use pwgs_codec::stream::{self, Decoded};
 use pwgs_core::gaussians::{Gaussians, sh_band, sh_coeff_count};
 
-use crate::importance;
-use crate::rotation_frame::canonical_frame;
+use crate::plain::importance;
+use crate::plain::rotation_frame::canonical_frame;
 use crate::size_fit::{Fit, most_important_fitting};
 
 /// The size/quality knob: 5 is the default; each step up halves every quantization step's

@@ -23,10 +23,10 @@ use pwgs_core::frame::SceneFrame;
 use pwgs_core::random::SplitMix64;
 use pwgs_render::raster::Window;
 
-use super::adam::direction;
 use crate::metrics::sigma_map::{Log2Sigma, SigmaMap};
 use crate::metrics::vgg_wasserstein::{MIN_SIDE, VggWasserstein, WdDepth, WdTarget};
-use crate::synthesis::{flat_tensor, forward, host_weights, initial_parameters};
+use crate::train::adam::direction;
+use crate::wrapper::synthesis::{flat_tensor, forward, host_weights, initial_parameters};
 
 /// Stage 2's default length per training view. On fox (58 training views) 34 crops per view
 /// gave DISTS 0.0803 where 17 gave 0.0844 and 64 gave no better (0.0816, with the pixel
@@ -63,7 +63,7 @@ pub struct WrapperTraining {
     pub config: WrapperConfig,
     /// First iteration of stage 2.
     pub start: u32,
-    /// Stage 2's length per training view (see [`super::TrainConfig::schedule_stage_two`]).
+    /// Stage 2's length per training view (see [`crate::plain::train::TrainConfig::schedule_stage_two`]).
     pub crops_per_view: u32,
     /// Stage 2's least length, whatever the number of views.
     pub min_steps: u32,

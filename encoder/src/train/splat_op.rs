@@ -2,7 +2,7 @@
 //! `render(&splats, camera)` on tensors and get gradients for every Gaussian parameter.
 //!
 //! Forward and backward are the CPU reference implementations (the decoder's forward, this
-//! crate's [`crate::backward`]); the op moves tensor data to the host and back. It is
+//! crate's [`crate::train::backward`]); the op moves tensor data to the host and back. It is
 //! registered for Burn's `flex` CPU backend and for autodiff over it; GPU backends will get
 //! kernels of their own, checked against this one.
 
@@ -20,7 +20,7 @@ use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_render::raster::{RenderOptions, Rendered, Window, rasterize_window};
 
-use crate::backward::{Gradients, backward};
+use crate::train::backward::{Gradients, backward};
 
 /// The trainable parameters of a set of Gaussians, as backend tensors.
 #[derive(ExtensionType)]

@@ -8,7 +8,7 @@ use pwgs_core::camera::{Camera, CameraError, Intrinsics};
 use pwgs_core::rgb_image::RgbImage;
 use pwgs_render::raster::{RenderOptions, render};
 
-use crate::compress::StreamContext;
+use crate::plain::compress::StreamContext;
 
 /// Horizontal field of view of orbit cameras.
 const ORBIT_FOV_DEGREES: f32 = 60.0;
