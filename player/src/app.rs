@@ -70,8 +70,8 @@ struct RenderKey {
 
 struct Player {
     gpu: GpuRenderer,
-    /// The open stream, and its scene made ready for the GPU.
-    stream: Option<(LoadedStream, GpuScene)>,
+    /// The open stream, and its Gaussians on the GPU unless the CPU renders the pictures.
+    stream: Option<(LoadedStream, Option<GpuScene>)>,
     /// A stream being decoded on another thread.
     loading: Option<(PathBuf, Receiver<Result<LoadedStream>>)>,
     /// Bumped for every stream opened, so that its first picture is rendered.
@@ -152,9 +152,13 @@ impl Player {
     fn poll_loading(&mut self, ctx: &egui::Context) {
         let Some((path, receiver)) = &self.loading else { return };
         let Ok(result) = receiver.try_recv() else { return };
+        // The CPU renderer needs nothing on the GPU.
+        let on_cpu = self.renderer.on_cpu(&self.gpu);
         let prepared = result.and_then(|stream| {
-            let prepared =
-                self.gpu.prepare(&stream.scene).with_context(|| format!("cannot show {}", path.display()))?;
+            let prepared = (!on_cpu)
+                .then(|| self.gpu.prepare(&stream.scene))
+                .transpose()
+                .with_context(|| format!("cannot show {}", path.display()))?;
             Ok((stream, prepared))
         });
         match prepared {
@@ -365,7 +369,10 @@ impl Player {
             generation: self.generation,
         };
         if self.continuous || self.shown.as_ref().is_none_or(|s| s.key != key) {
-            let painter = Painter { gpu: &self.gpu, prepared, on_cpu: self.renderer.on_cpu(&self.gpu) };
+            let painter = match prepared {
+                Some(prepared) => Painter::Gpu(&self.gpu, prepared),
+                None => Painter::Cpu,
+            };
             match picture(painter, &stream.scene, &camera, self.mode, self.residual_gain) {
                 Ok((mut image, times)) => {
                     if let (Some(d), Some(i)) = (&self.dataset, self.view) {

@@ -33,8 +33,13 @@ pub fn screenshot(
         bail!("{}: the stream has no perceptual wrapper to show the {} of", stream.display(), mode.label());
     }
     let gpu = GpuRenderer::new()?;
-    let prepared = gpu.prepare(&loaded.scene)?;
-    let painter = Painter { gpu: &gpu, prepared: &prepared, on_cpu: renderer.on_cpu(&gpu) };
+    let prepared;
+    let painter = if renderer.on_cpu(&gpu) {
+        Painter::Cpu
+    } else {
+        prepared = gpu.prepare(&loaded.scene)?;
+        Painter::Gpu(&gpu, &prepared)
+    };
     let (image, times) = picture(painter, &loaded.scene, &camera, mode, RESIDUAL_GAIN)?;
     image.save_png(out).with_context(|| format!("cannot write {}", out.display()))?;
     eprintln!(

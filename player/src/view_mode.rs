@@ -10,7 +10,8 @@ use pwgs_core::rgb_image::RgbImage;
 use pwgs_render::gpu::{GpuError, GpuRenderer, GpuScene, Output, StageTimes};
 use pwgs_render::show::{SceneRender, Shown};
 
-/// Which renderer draws the splats (the window and the wrapper's network stay on wgpu).
+/// Which renderer draws the pictures: the GPU (wgpu), or the decoder's CPU renderer with the
+/// wrapper's network on the CPU too (the window stays on wgpu either way).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum Renderer {
     /// The GPU, unless its adapter is a software rasterizer: then the CPU renderer, which is
@@ -72,24 +73,25 @@ impl ViewMode {
     }
 }
 
-/// The GPU renderer with the scene it prepared, and whether pictures are rendered on the CPU
-/// instead ([`Renderer::on_cpu`]).
+/// What renders a picture ([`Renderer::on_cpu`] chooses): the GPU renderer with the scene it
+/// prepared, or the CPU renderer (which needs nothing prepared).
 #[derive(Clone, Copy)]
-pub struct Painter<'a> {
-    pub gpu: &'a GpuRenderer,
-    pub prepared: &'a GpuScene,
-    pub on_cpu: bool,
+pub enum Painter<'a> {
+    Gpu(&'a GpuRenderer, &'a GpuScene),
+    Cpu,
 }
 
 impl Painter<'_> {
     fn render(&self, scene: &Scene, camera: &Camera, output: Output) -> Result<(Shown, StageTimes), GpuError> {
         let options = scene.render_options();
-        if !self.on_cpu {
-            return self.gpu.render(scene, self.prepared, camera, &options, output);
+        match self {
+            Painter::Gpu(gpu, prepared) => gpu.render(scene, prepared, camera, &options, output),
+            Painter::Cpu => {
+                let start = Instant::now();
+                let shown = scene.render(camera, &options, output == Output::Shown)?;
+                Ok((shown, StageTimes { raster: start.elapsed(), ..StageTimes::default() }))
+            }
         }
-        let start = Instant::now();
-        let shown = scene.render(camera, &options, output == Output::Shown)?;
-        Ok((shown, StageTimes { raster: start.elapsed(), ..StageTimes::default() }))
     }
 }
 

@@ -44,9 +44,9 @@ struct Args {
     /// median time of each stage and the frame rate.
     #[arg(long, requires = "view", default_value_t = 0)]
     frames: u32,
-    /// What renders the splats: `auto` is the GPU unless its adapter is a software rasterizer
-    /// (then the CPU renderer, faster on the same cores); the window and the wrapper's network
-    /// stay on wgpu.
+    /// What renders the pictures: `auto` is the GPU unless its adapter is a software rasterizer
+    /// (then the CPU renderer, faster on the same cores, with the wrapper's network on the CPU
+    /// too); the window stays on wgpu.
     #[arg(long, value_enum, default_value_t = Renderer::Auto)]
     renderer: Renderer,
 }

@@ -230,9 +230,9 @@ impl GpuRenderer {
         // their tile is surely opaque, with the bound taken of the splats as the blend pass
         // reads them (read back: 48 bytes per Gaussian, a cost an ordinary view, whose lists fit
         // one window, does not pay), and refused past the limit, as pwdec refuses them.
-        let limit = (BlendLimit::DEFAULT, gaussians.count());
+        let limit = BlendLimit::DEFAULT;
         let ends = match windows.len() {
-            1 if full.work <= limit.0.of(view, limit.1) => full,
+            1 if full.work <= limit.of(view, gaussians.count()) => full,
             _ => {
                 let values = projected.splat_values(self)?;
                 let footprint = |k: usize| {

@@ -124,8 +124,12 @@ impl ListEnds {
         let mut sums = vec![0i64; stride * (tiles_y as usize + 1)];
         let mut work = 0u64;
         for i in 0..count {
-            let Some([tx0, tx1, ty0, ty1]) = tile_box(bbox(i), view) else { continue };
-            work += (ty0..ty1).map(|ty| entry_work(bbox(i), view, ty)).sum::<u64>() * u64::from(tx1 - tx0);
+            let b @ [_, _, y0, y1] = bbox(i);
+            let Some([tx0, tx1, ty0, ty1]) = tile_box(b, view) else { continue };
+            // Per tile of a column: one unit per entry plus its rows, which over the column's
+            // tiles add up to the box's rows inside the view.
+            let rows = y1.min(view.y0 + view.height) - y0.max(view.y0);
+            work += u64::from(tx1 - tx0) * u64::from(ty1 - ty0 + rows);
             let [tx0, tx1, ty0, ty1] = [tx0, tx1, ty0, ty1].map(|v| v as usize);
             sums[ty0 * stride + tx0] += 1;
             sums[ty0 * stride + tx1] -= 1;
@@ -162,10 +166,10 @@ impl ListEnds {
         let tile_count = (tiles_x * tiles_y) as usize;
         let (closed_at, lengths) = (vec![OPEN; tile_count], vec![0; tile_count]);
         let mut ends = Self { view, tiles_x, tiles_y, closed_at, lengths, work: 0 };
-        let walk = walk_open_tiles(count, &bbox, view, |i, tx, ty| {
+        let walk = walk_open_tiles(count, bbox, view, |i, b, tx, ty| {
             let t = (ty * tiles_x + tx) as usize;
             ends.lengths[t] += 1;
-            ends.work += entry_work(bbox(i), view, ty);
+            ends.work += entry_work(b, view, ty);
             if ends.work > limit {
                 return ControlFlow::Break(());
             }
@@ -246,7 +250,7 @@ impl ListEnds {
         }
         let mut cursor = offsets.clone();
         let mut entries = vec![0u32; *offsets.last().expect("starts with 0")];
-        let walk = walk_open_tiles(count, bbox, window, |i, tx, ty| {
+        let walk = walk_open_tiles(count, bbox, window, |i, _, tx, ty| {
             let t = (ty * tiles_x + tx) as usize;
             entries[cursor[t]] = i as u32;
             cursor[t] += 1;
@@ -267,14 +271,14 @@ fn entry_work([_, _, y0, y1]: [u32; 4], view: Window, ty: u32) -> u64 {
 }
 
 /// Walks `count` items (front to back) with pixel boxes `bbox` over the tiles of `window` that
-/// each meets and that are still open, calling `visit(item, tx, ty)`; a tile closes when
-/// `visit` continues with true, the walk ends once every tile has closed, and stops where
+/// each meets and that are still open, calling `visit(item, its box, tx, ty)`; a tile closes
+/// when `visit` continues with true, the walk ends once every tile has closed, and stops where
 /// `visit` breaks.
 fn walk_open_tiles<B>(
     count: usize,
     bbox: impl Fn(usize) -> [u32; 4],
     window: Window,
-    mut visit: impl FnMut(usize, u32, u32) -> ControlFlow<B, bool>,
+    mut visit: impl FnMut(usize, [u32; 4], u32, u32) -> ControlFlow<B, bool>,
 ) -> Result<(), B> {
     let (tiles_x, tiles_y) = window.tile_counts();
     let mut open = OpenTiles::new(tiles_x, tiles_y);
@@ -282,8 +286,9 @@ fn walk_open_tiles<B>(
         if open.none() {
             break;
         }
-        let Some(range) = tile_box(bbox(i), window) else { continue };
-        if let ControlFlow::Break(b) = open.walk(range, |tx, ty| visit(i, tx, ty)) {
+        let item = bbox(i);
+        let Some(range) = tile_box(item, window) else { continue };
+        if let ControlFlow::Break(b) = open.walk(range, |tx, ty| visit(i, item, tx, ty)) {
             return Err(b);
         }
     }
