@@ -17,8 +17,7 @@
 //! Every MLP is Linear, ReLU, Linear, evaluated in f32 in a fixed order with the portable
 //! `exp`, so the derived Gaussians are the same on every machine.
 
-use sha2::{Digest, Sha256};
-
+use crate::hashing::Hasher;
 use crate::portable_math::{exp_f32, ln_f64};
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::{Gaussians, rgb_to_sh_dc};
@@ -45,23 +44,74 @@ impl Mlp {
             && self.b2.len() == self.outputs
     }
 
-    /// The MLP at `input` into `out` (`hidden` is scratch space). Each sum runs over its
-    /// terms in index order, starting from the bias.
-    pub fn forward(&self, input: &[f32], hidden: &mut [f32], out: &mut [f32]) {
-        for (h, (row, b)) in hidden.iter_mut().zip(self.w1.chunks_exact(self.inputs).zip(&self.b1)) {
-            *h = row.iter().zip(input).fold(*b, |acc, (w, x)| acc + w * x).max(0.0);
-        }
-        for (o, (row, b)) in out.iter_mut().zip(self.w2.chunks_exact(self.hidden).zip(&self.b2)) {
-            *o = row.iter().zip(hidden.iter()).fold(*b, |acc, (w, x)| acc + w * x);
+    /// The MLP laid out for evaluation.
+    pub fn evaluator(&self) -> MlpEvaluator {
+        MlpEvaluator {
+            first: PackedLayer::new(&self.w1, &self.b1, self.inputs),
+            second: PackedLayer::new(&self.w2, &self.b2, self.hidden),
         }
     }
 
-    fn hash_into(&self, h: &mut Sha256) {
-        for v in [self.inputs, self.hidden, self.outputs] {
-            h.update((v as u64).to_le_bytes());
-        }
-        for v in self.w1.iter().chain(&self.b1).chain(&self.w2).chain(&self.b2) {
-            h.update(v.to_le_bytes());
+    fn hash_into(&self, h: &mut Hasher) {
+        [self.inputs, self.hidden, self.outputs].iter().for_each(|&v| h.u64(v as u64));
+        h.floats(self.w1.iter().chain(&self.b1).chain(&self.w2).chain(&self.b2));
+    }
+}
+
+/// An [`Mlp`] laid out for evaluation: each layer's rows in groups of eight, the group's
+/// weights of one input side by side, so that eight sums advance together (one vector multiply
+/// and add per input) instead of each waiting on its previous addition. Each sum still starts
+/// from its bias and takes its terms in index order: the result is that of the row-by-row sums,
+/// bit for bit.
+pub struct MlpEvaluator {
+    first: PackedLayer,
+    second: PackedLayer,
+}
+
+impl MlpEvaluator {
+    /// The MLP at `input` into `out` (`hidden`, of the hidden width, is scratch space):
+    /// `out = W2 · relu(W1 · input + b1) + b2`.
+    pub fn forward(&self, input: &[f32], hidden: &mut [f32], out: &mut [f32]) {
+        self.first.apply(input, hidden);
+        hidden.iter_mut().for_each(|h| *h = h.max(0.0));
+        self.second.apply(hidden, out);
+    }
+}
+
+/// Rows evaluated together.
+const LANES: usize = 8;
+
+/// One layer `y = W x + b`: per group of [`LANES`] rows, for each input the group's weights
+/// (rows past the last padded with 0), and the group's biases.
+struct PackedLayer {
+    inputs: usize,
+    weights: Vec<[f32; LANES]>,
+    biases: Vec<[f32; LANES]>,
+}
+
+impl PackedLayer {
+    /// The layer of row-major `w` ([output][input]) and `b`.
+    fn new(w: &[f32], b: &[f32], inputs: usize) -> Self {
+        let groups = b.len().div_ceil(LANES);
+        let lane = |g: usize, r: usize, value: &dyn Fn(usize) -> f32| match g * LANES + r {
+            o if o < b.len() => value(o),
+            _ => 0.0,
+        };
+        let weights = (0..groups)
+            .flat_map(|g| (0..inputs).map(move |i| std::array::from_fn(|r| lane(g, r, &|o| w[o * inputs + i]))))
+            .collect();
+        let biases = (0..groups).map(|g| std::array::from_fn(|r| lane(g, r, &|o| b[o]))).collect();
+        Self { inputs, weights, biases }
+    }
+
+    fn apply(&self, x: &[f32], y: &mut [f32]) {
+        let groups = self.weights.chunks_exact(self.inputs.max(1)).zip(&self.biases);
+        for ((weights, &bias), out) in groups.zip(y.chunks_mut(LANES)) {
+            let mut sums = bias;
+            for (w, &xi) in weights.iter().zip(x) {
+                sums = std::array::from_fn(|r| sums[r] + w[r] * xi);
+            }
+            out.copy_from_slice(&sums[..out.len()]);
         }
     }
 }
@@ -115,19 +165,15 @@ impl AnchorModel {
     /// SHA-256 of the anchors and MLPs in a canonical layout (sizes, then every array as
     /// little-endian binary32, masks as bytes): equal hashes mean the same model.
     pub fn hash(&self) -> String {
-        let mut h = Sha256::new();
-        for v in [self.len(), self.feature_dim, self.offsets_per_anchor] {
-            h.update((v as u64).to_le_bytes());
-        }
+        let mut h = Hasher::default();
+        [self.len(), self.feature_dim, self.offsets_per_anchor].iter().for_each(|&v| h.u64(v as u64));
         let floats = self.positions.iter().flatten().chain(&self.features).chain(self.scaling.iter().flatten());
-        for v in floats.chain(&self.offsets) {
-            h.update(v.to_le_bytes());
-        }
-        h.update(self.masks.iter().map(|&m| u8::from(m)).collect::<Vec<_>>());
+        h.floats(floats.chain(&self.offsets));
+        h.bytes(&self.masks.iter().map(|&m| u8::from(m)).collect::<Vec<_>>());
         for mlp in [&self.opacity, &self.color, &self.covariance] {
             mlp.hash_into(&mut h);
         }
-        h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+        h.hex()
     }
 
     /// The Gaussians `camera` sees: for each anchor, its kept neural Gaussians (degree-0
@@ -148,6 +194,7 @@ impl AnchorModel {
         let mut input = vec![0.0f32; f + 4];
         let mut hidden = vec![0.0f32; self.opacity.hidden.max(self.color.hidden).max(self.covariance.hidden)];
         let (mut alpha, mut color, mut cov) = (vec![0.0f32; k], vec![0.0f32; 3 * k], vec![0.0f32; 7 * k]);
+        let [opacity, color_net, covariance] = [&self.opacity, &self.color, &self.covariance].map(Mlp::evaluator);
         for (i, a) in self.positions.iter().enumerate() {
             let v = [a[0] - center[0], a[1] - center[1], a[2] - center[2]];
             let d = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -156,13 +203,13 @@ impl AnchorModel {
             }
             input[..f].copy_from_slice(&self.features[i * f..(i + 1) * f]);
             input[f..].copy_from_slice(&[v[0] / d, v[1] / d, v[2] / d, d]);
-            self.opacity.forward(&input, &mut hidden[..self.opacity.hidden], &mut alpha);
+            opacity.forward(&input, &mut hidden[..self.opacity.hidden], &mut alpha);
             let masks = &self.masks[i * k..(i + 1) * k];
             if !alpha.iter().zip(masks).any(|(&x, &m)| m && x > 0.0) {
                 continue;
             }
-            self.color.forward(&input, &mut hidden[..self.color.hidden], &mut color);
-            self.covariance.forward(&input, &mut hidden[..self.covariance.hidden], &mut cov);
+            color_net.forward(&input, &mut hidden[..self.color.hidden], &mut color);
+            covariance.forward(&input, &mut hidden[..self.covariance.hidden], &mut cov);
             let s = &self.scaling[i];
             let offset_scale = [exp_f32(s[0]), exp_f32(s[1]), exp_f32(s[2])];
             for j in 0..k {
@@ -234,8 +281,32 @@ mod tests {
         };
         assert!(m.is_consistent());
         let (mut hidden, mut out) = ([0.0; 2], [0.0; 1]);
-        m.forward(&[1.0, 2.0], &mut hidden, &mut out);
+        m.evaluator().forward(&[1.0, 2.0], &mut hidden, &mut out);
         assert_eq!((hidden, out), ([0.0, 3.0], [-5.0]));
+    }
+
+    #[test]
+    fn the_evaluator_sums_each_row_in_order_bit_for_bit() {
+        let mut rng = SplitMix64(11);
+        for (inputs, hidden, outputs) in [(1, 1, 1), (5, 8, 3), (13, 17, 16), (3, 15, 530), (9, 7, 9)] {
+            let mut draw = |n: usize| (0..n).map(|_| rng.uniform(-3.0, 3.0)).collect::<Vec<f32>>();
+            let (w1, b1, w2, b2) = (draw(hidden * inputs), draw(hidden), draw(outputs * hidden), draw(outputs));
+            let input = draw(inputs);
+            let m = Mlp { inputs, hidden, outputs, w1, b1, w2, b2 };
+            let row_by_row = |w: &[f32], b: &[f32], x: &[f32]| -> Vec<f32> {
+                w.chunks_exact(x.len())
+                    .zip(b)
+                    .map(|(row, b)| row.iter().zip(x).fold(*b, |s, (w, x)| s + w * x))
+                    .collect()
+            };
+            let h: Vec<f32> = row_by_row(&m.w1, &m.b1, &input).iter().map(|h| h.max(0.0)).collect();
+            let expected = row_by_row(&m.w2, &m.b2, &h);
+            let (mut hidden_out, mut out) = (vec![0.0; hidden], vec![0.0; outputs]);
+            m.evaluator().forward(&input, &mut hidden_out, &mut out);
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&hidden_out), bits(&h), "{inputs} {hidden} {outputs}");
+            assert_eq!(bits(&out), bits(&expected), "{inputs} {hidden} {outputs}");
+        }
     }
 
     #[test]
@@ -259,7 +330,7 @@ mod tests {
             input.extend([v[0] / d, v[1] / d, v[2] / d, d].map(|x| x as f32));
             let run = |mlp: &Mlp| {
                 let mut out = vec![0.0; mlp.outputs];
-                mlp.forward(&input, &mut vec![0.0; mlp.hidden], &mut out);
+                mlp.evaluator().forward(&input, &mut vec![0.0; mlp.hidden], &mut out);
                 out
             };
             let (alpha, color, cov) = (run(&m.opacity), run(&m.color), run(&m.covariance));

@@ -10,6 +10,7 @@
 
 pub mod anchor;
 pub mod context_grid;
+pub mod hashing;
 pub mod portable_math;
 pub mod random_scene;
 pub mod scene;

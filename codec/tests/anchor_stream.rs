@@ -4,7 +4,7 @@
 use pwgs_bitstream::{Container, Tag, write_container};
 use pwgs_codec::context_grid::ContextGridShape;
 use pwgs_codec::stream::anchor::{self, QuantizedAnchors, QuantizedMlp};
-use pwgs_codec::stream::anchor_context::{self, AnchorModels, QuantizedContext};
+use pwgs_codec::stream::anchor_context::{self, ContextNetwork, QuantizedContext};
 use pwgs_codec::stream::header::{BaseKind, Header};
 use pwgs_codec::stream::plain::PositionGrid;
 use pwgs_codec::stream::{self, Content};
@@ -268,10 +268,11 @@ fn predictable_anchors(n: usize, context: QuantizedContext, seed: u64) -> Quanti
     let mut content = random_anchors(n, seed);
     let mut rng = SplitMix64(seed ^ 0xc0de);
     let (f, k) = (5, 3);
-    let mut models = AnchorModels::new(&context, content.grid.depth, f, k);
-    for i in 0..n {
-        models.evaluate(content.positions[i]);
-        let mut draw = |t: usize| (models.model(t).mean as f32 / 64.0).round() as i32 + ints(&mut rng, 1, 1.0)[0];
+    let network = ContextNetwork::new(&context, content.grid.depth, (f, k));
+    let mut models = Vec::new();
+    network.models(&content.positions, &mut models);
+    for (i, anchor) in models.chunks_exact(network.values()).enumerate() {
+        let mut draw = |t: usize| (anchor[t].mean as f32 / 64.0).round() as i32 + ints(&mut rng, 1, 1.0)[0];
         (0..f).for_each(|c| content.features[i * f + c] = draw(c));
         (0..6).for_each(|c| content.scaling[i][c] = draw(f + c));
         for j in 0..k {

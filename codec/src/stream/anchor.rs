@@ -6,15 +6,13 @@
 
 use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 
-use super::anchor_context::{
-    AnchorModels, AttributeBlocks, CONTEXT, QuantizedContext, predicted_values, read_blocks, write_blocks,
-};
+use super::anchor_context::{AttributeBlocks, CONTEXT, QuantizedContext, predicted_values, read_blocks, write_blocks};
 use super::entropy::{FrequencyTable, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::OctreeError;
 use super::plain::{Models, PositionGrid, Rows, ValueCheck, read_block, read_positions, write_block, write_positions};
 use super::wrap::{MAX_EXPONENT, MIN_EXPONENT, power_of_two, quantize_to_step};
-use super::{BYTES_PER_GAUSSIAN, DecodeError};
+use super::{BYTES_PER_GAUSSIAN, DecodeError, Sections};
 use crate::anchor::{AnchorModel, Mlp};
 
 pub const ANCHOR_POSITIONS: Tag = Tag(*b"APOS");
@@ -185,8 +183,9 @@ impl QuantizedAnchors {
         }
     }
 
-    /// The sections of this content, every per-anchor value in the octree's order.
-    pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
+    /// The sections of this content, every per-anchor value in the octree's order, and the
+    /// in-range symbols of the context model's tables (0 without one).
+    pub(super) fn write_sections(&self) -> Result<(Sections, u64), OctreeError> {
         let (positions, order) = write_positions(&self.grid, &self.positions)?;
         let (f, k) = (self.feature_dim, self.offsets_per_anchor);
         let block = |models, steps: &[f32], channels: usize, value: &dyn Fn(usize, usize) -> i32| {
@@ -197,18 +196,18 @@ impl QuantizedAnchors {
         };
         let masks = (MASKS, block(Models::Tables, &[], k, &|i, c| i32::from(self.masks[i * k + c])));
         let Some(context) = &self.context else {
-            return Ok(vec![
+            let sections = vec![
                 (NETWORKS, self.write_networks()),
                 (ANCHOR_POSITIONS, positions),
                 (FEATURES, block(Models::Gaussians, &[self.feature_step], f, &|i, c| self.features[i * f + c])),
                 (SCALING, block(Models::Gaussians, &[self.scaling_step], 6, &|i, c| self.scaling[i][c])),
                 masks,
                 (OFFSETS, self.write_offsets(&order)),
-            ]);
+            ];
+            return Ok((sections, 0));
         };
-        let mut models = AnchorModels::new(context, self.grid.depth, f, k);
-        let [features, scaling, offsets] = write_blocks(&mut models, self, &order);
-        Ok(vec![
+        let ([features, scaling, offsets], table_symbols) = write_blocks(context, self.grid.depth, self, &order);
+        let sections = vec![
             (NETWORKS, self.write_networks()),
             (ANCHOR_POSITIONS, positions),
             (CONTEXT, context.write(self.grid.depth)),
@@ -216,7 +215,8 @@ impl QuantizedAnchors {
             (SCALING, scaling),
             masks,
             (OFFSETS, offsets),
-        ])
+        ];
+        Ok((sections, table_symbols))
     }
 
     /// `AOFF`: the offsets of the unmasked neural Gaussians only, anchor by anchor (in `order`),
@@ -300,10 +300,12 @@ impl QuantizedAnchors {
                 let values = predicted_values(feature_dim, k);
                 let context = QuantizedContext::read(section.payload, grid.depth, values, (count, stream_len))?;
                 let masks = read_masks()?;
-                let blocks = {
-                    let mut models = AnchorModels::new(&context, grid.depth, feature_dim, k);
-                    read_blocks([features, scaling, offsets], &mut models, &positions, &masks)?
-                };
+                let blocks = read_blocks(
+                    [features, scaling, offsets],
+                    (&context, grid.depth, (feature_dim, k)),
+                    (&positions, &masks),
+                    stream_len,
+                )?;
                 (Some(context), masks, blocks)
             }
             None => {

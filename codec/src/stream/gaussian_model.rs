@@ -61,8 +61,7 @@ impl GaussianModel {
     /// `P` the mass of its unit bin under the clamped-monotone CDF, and the escape the rest.
     pub fn table(self) -> FrequencyTable {
         let (mu, sigma) = (self.mean_units(), self.sigma());
-        let half_max = (MAX_TABLE_SYMBOLS as i64 - 1) / 2;
-        let half = ((WINDOW_SCALES * sigma).ceil() as i64).clamp(0, half_max);
+        let half = Self::half_window(sigma);
         let center = (mu + 0.5).floor() as i64;
         let lo = center - half;
         let n = (2 * half + 1) as usize;
@@ -77,6 +76,18 @@ impl GaussianModel {
         let used: u32 = frequencies.iter().sum();
         frequencies.push(TOTAL - used);
         FrequencyTable::from_frequencies(lo as i32, &frequencies).expect("the construction gives a valid table")
+    }
+
+    /// The table's in-range symbols, `n = 2 h + 1` (as [`Self::table`] builds it), without
+    /// building it: what a decoder counts against a bound on the tables it builds.
+    pub fn table_symbols(self) -> u32 {
+        2 * Self::half_window(self.sigma()) as u32 + 1
+    }
+
+    /// `h = min(ceil(8 sigma), 2047)`.
+    fn half_window(sigma: f64) -> i64 {
+        let half_max = (MAX_TABLE_SYMBOLS as i64 - 1) / 2;
+        ((WINDOW_SCALES * sigma).ceil() as i64).clamp(0, half_max)
     }
 
     /// Syntax: mean (signed varint, 64ths), scale (u8).
@@ -156,6 +167,18 @@ mod tests {
             assert!(t.symbols() >= 1 && t.symbols() <= MAX_TABLE_SYMBOLS);
         }
         assert!(GaussianModel { mean: 0, scale: 0 }.table().cost_bits(0) < 0.001);
+    }
+
+    #[test]
+    fn the_symbol_count_is_that_of_the_table() {
+        for scale in 0..=255 {
+            for mean in [-65, 0, 31, 63] {
+                let model = GaussianModel { mean, scale };
+                assert_eq!(model.table_symbols(), model.table().symbols(), "{model:?}");
+            }
+        }
+        assert_eq!(GaussianModel { mean: 0, scale: 0 }.table_symbols(), 3);
+        assert_eq!(GaussianModel { mean: 0, scale: 255 }.table_symbols(), MAX_TABLE_SYMBOLS - 1);
     }
 
     #[test]

@@ -14,8 +14,8 @@ pub mod plain;
 pub mod trees;
 pub mod wrap;
 
+use crate::hashing::Hasher;
 use pwgs_bitstream::{Container, FieldError, SECTION_OVERHEAD, StreamError, Tag, write_container};
-use sha2::{Digest, Sha256};
 
 use crate::scene::{Base, Scene};
 use anchor::QuantizedAnchors;
@@ -171,11 +171,15 @@ impl ContentRef<'_> {
         }
     }
 
-    fn write_sections(self) -> Result<Vec<(Tag, Vec<u8>)>, octree::OctreeError> {
-        match self {
-            ContentRef::Plain(p) => p.write_sections(),
-            ContentRef::Anchors(a) => a.write_sections(),
-        }
+    /// The content's sections and the stream length they need at least (SPEC.md section 9, and
+    /// 12.7 for the context model's tables, known once its values are written).
+    fn write_sections(self) -> Result<(Sections, usize), octree::OctreeError> {
+        let (sections, table_symbols) = match self {
+            ContentRef::Plain(p) => (p.write_sections()?, 0),
+            ContentRef::Anchors(a) => a.write_sections()?,
+        };
+        let needed = self.minimum_stream_len().max(anchor_context::stream_len_for_table_symbols(table_symbols));
+        Ok((sections, needed))
     }
 }
 
@@ -193,21 +197,24 @@ pub fn encode<'a>(
         assert_eq!(header.sh_degree, p.sh_degree, "header SH degree does not match the content");
     }
     let mut sections = vec![(Tag::HEAD, header.write())];
-    sections.extend(content.write_sections()?);
+    let (content_sections, needed) = content.write_sections()?;
+    sections.extend(content_sections);
     if let Some(w) = wrapper {
         sections.push((WRAPPER, w.write()));
     }
     let bytes = write_container(&sections);
     // Content far more redundant than any real scene (e.g. hundreds of identical Gaussians)
-    // can code to fewer bytes than its count needs, which decoders refuse (SPEC.md section 9):
-    // an optional section of zeros pads such a stream to the length its count needs.
-    let needed = content.minimum_stream_len();
+    // can code to fewer bytes than its counts or context tables need, which decoders refuse
+    // (SPEC.md sections 9, 12.7): an optional section of zeros pads such a stream to that length.
     if bytes.len() < needed {
         sections.push((PADDING, vec![0; (needed - bytes.len()).saturating_sub(SECTION_OVERHEAD)]));
         return Ok(write_container(&sections));
     }
     Ok(bytes)
 }
+
+/// A stream's sections, tags and payloads, in writing order.
+pub(super) type Sections = Vec<(Tag, Vec<u8>)>;
 
 /// The optional section that pads a stream to the length its content needs; decoders skip it.
 pub const PADDING: Tag = Tag(*b"pad ");
@@ -296,12 +303,10 @@ pub fn parse(bytes: &[u8]) -> Result<(Container<'_>, Header), DecodeError> {
 /// SHA-256 of decoded Gaussians in a canonical byte layout (count, SH degree, then every array
 /// as little-endian binary32): equal hashes mean bit-identical attributes.
 pub fn attribute_hash(g: &Gaussians) -> String {
-    let mut h = Sha256::new();
-    h.update((g.len() as u64).to_le_bytes());
-    h.update(g.sh_degree.to_le_bytes());
+    let mut h = Hasher::default();
+    h.u64(g.len() as u64);
+    h.bytes(&g.sh_degree.to_le_bytes());
     let floats = g.means.iter().flatten().chain(g.log_scales.iter().flatten()).chain(g.rotations.iter().flatten());
-    for v in floats.chain(&g.opacity_logits).chain(&g.sh) {
-        h.update(v.to_le_bytes());
-    }
-    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    h.floats(floats.chain(&g.opacity_logits).chain(&g.sh));
+    h.hex()
 }

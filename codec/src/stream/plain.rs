@@ -6,13 +6,13 @@
 use pwgs_bitstream::{Container, FieldError, FieldReader, FieldWriter, Tag};
 use rayon::prelude::*;
 
-use super::DecodeError;
 use super::classes::{CLASSES, ImportanceClasses};
 use super::colour_differences::{self, COLOUR_DIFFERENCES};
 use super::entropy::{EntropyError, FrequencyTable, MAX_MAGNITUDE, SymbolDecoder, SymbolEncoder};
 use super::gaussian_model::GaussianModel;
 use super::octree::{self, MAX_DEPTH, OctreeError};
 use super::trees::{self, ADAPTIVE, TreeModel, Trees};
+use super::{DecodeError, Sections};
 use pwgs_core::gaussians::{Gaussians, sh_band, sh_coeff_count};
 
 pub const POSITIONS: Tag = Tag(*b"POSN");
@@ -151,7 +151,7 @@ impl PlainGaussians {
     }
 
     /// The sections of this content, attributes in the order the octree lists positions.
-    pub(super) fn write_sections(&self) -> Result<Vec<(Tag, Vec<u8>)>, OctreeError> {
+    pub(super) fn write_sections(&self) -> Result<Sections, OctreeError> {
         let refine = self.refine();
         let coarse: Vec<[u32; 3]> = self.positions.iter().map(|q| q.map(|c| c >> refine)).collect();
         let (positions, order) = write_positions(&self.grid, &coarse)?;

@@ -6,8 +6,8 @@
 //! seed, level and position, so any thread may compute any sample) mapped through a fixed
 //! table, and the upsampling uses only `+ - * /` and `floor` in binary64 in a fixed order.
 
+use crate::hashing::Hasher;
 use rayon::prelude::*;
-use sha2::{Digest, Sha256};
 
 use pwgs_core::random::splitmix64_at;
 
@@ -102,11 +102,9 @@ pub fn noise_pyramid(seed: u64, width: usize, height: usize) -> Vec<f32> {
 
 /// SHA-256 (hex) of a pyramid's values as little-endian binary32, in [`noise_pyramid`] order.
 pub fn pyramid_sha256(values: &[f32]) -> String {
-    let mut h = Sha256::new();
-    for v in values {
-        h.update(v.to_le_bytes());
-    }
-    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    let mut h = Hasher::default();
+    h.floats(values);
+    h.hex()
 }
 
 #[cfg(test)]

@@ -11,6 +11,7 @@ use pwgs_codec::stream::plain::PositionGrid;
 use pwgs_codec::stream::{self, PADDING};
 
 use super::content::Draws;
+use super::context_tables;
 use super::{Refusal, Vector};
 
 /// F and K of the vectors.
@@ -234,6 +235,9 @@ pub fn refusals() -> Vec<Refusal> {
             ..c.mlp.clone()
         };
     }
+    // 128 anchors whose context model needs 64 x 5 tables of 4,095 symbols and one of 3
+    // (1,310,403 symbols), so at least (1,310,403 - 2^20) / 8 bytes, 32,729; padded to 32,728.
+    let wide_tables = context_tables::with_wide_tables(zeroed(synthetic_anchors(128, 43)), 5, 2);
     // 1,000 anchors with every mask open: 4,000 unmasked offsets, so at least 8,000 bytes at
     // two per offset; padded to 7,999 (the values need 1,000 x 28 / 32 = 875 bytes, the
     // networks 1,000 x 592 / 1024 = 579).
@@ -255,6 +259,14 @@ pub fn refusals() -> Vec<Refusal> {
             "400 anchors whose context network is 128 wide: 8,592 multiply-adds per anchor in a stream of 3,356 \
              bytes, one byte short of 1024 multiply-adds per byte.",
             padded_to(&encode(&wide_context), 3356),
+        ),
+        refusal(
+            "anchor-context-table-symbols",
+            "S12.7-context",
+            "more than the 1310400 a stream of 32728 bytes may build",
+            "128 anchors whose context model needs 321 tables of 1,310,403 symbols in all in a stream of 32,728 bytes, \
+             one byte short of 2^20 plus 8 table symbols per byte.",
+            padded_to(&encode(&wide_tables), 32728),
         ),
         refusal(
             "anchor-unmasked-offsets-per-byte",

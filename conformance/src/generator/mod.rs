@@ -8,6 +8,7 @@
 
 mod anchor_vectors;
 pub mod content;
+pub mod context_tables;
 pub mod hostile;
 mod invalid_cameras;
 mod invalid_streams;

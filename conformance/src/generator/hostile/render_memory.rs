@@ -15,6 +15,7 @@ use pwgs_core::camera_json::camera_to_json;
 use pwgs_codec::stream::plain::{PlainGaussians, QuantizedRotation};
 
 use super::super::content::{Draws, gaussians, header, ordinary, unit_cube};
+use super::super::context_tables::{wide_table_symbols, with_wide_tables};
 use super::{Hostile, HostileEntry, Outcome, Tool};
 
 /// A camera `width` x `height` 3.4 units in front of the unit cube, looking at its centre.
@@ -220,6 +221,7 @@ pub fn files() -> Vec<Hostile> {
     widest_networks.scaling.fill([0, 0, 0, -24, -24, -24]);
     let mut context = uniform_anchors(3500, (6, 4), [1; 3]);
     widest_context(&mut context);
+    let tables = with_wide_tables(uniform_anchors(128, (6, 4), [1; 3]), 5, 2);
     vec![
         accepted(
             "plain-60k-large.pwb",
@@ -266,6 +268,17 @@ pub fn files() -> Vec<Hostile> {
                 .into(),
             anchor_stream(&context),
         ),
+        accepted(
+            "anchors-context-tables-at-limit.pwb",
+            2,
+            None,
+            format!(
+                "128 anchors whose context model needs 321 tables of {} symbols in all (64 x 5 of the widest) in a \
+                 stream of 32,729 bytes: 2^20 plus 8 per byte, the limit of SPEC 12.7.",
+                wide_table_symbols(5)
+            ),
+            anchor_stream(&tables),
+        ),
     ]
 }
 
@@ -278,6 +291,10 @@ pub fn at_one_megabyte() -> Vec<Hostile> {
     let most_values = uniform_anchors(120_300, (256, 1), [1; 3]);
     // At all three limits: 500,000 anchors (2N = L) of K = 1 (2M = L) and F = 54 (32 values per byte).
     let most_anchors = uniform_anchors(500_000, (54, 1), [1; 3]);
+    // At every bound of an anchor stream with ACTX: the values of `most_values`, a context
+    // network of 15 units (120,300 x 8,019 multiply-adds, 94% of 1024 per byte) and 64 x 34
+    // tables of 4,095 symbols (8.9M symbols, 98% of 2^20 + 8 per byte).
+    let every_bound = with_wide_tables(uniform_anchors(120_300, (256, 1), [1; 3]), 34, 15);
     vec![
         too_much_blending(
             "anchors-values-and-neural-gaussians-at-limit.pwb",
@@ -314,6 +331,18 @@ pub fn at_one_megabyte() -> Vec<Hostile> {
              allows, at 1920x1080."
                 .into(),
             anchor_stream(&most_values),
+        ),
+        accepted(
+            "anchors-context-every-bound.pwb",
+            2,
+            Some((1920, 1080)),
+            format!(
+                "120,300 anchors of F = 256 and K = 1 with a context model in a 1,000,000-byte stream: 32 values per \
+                 byte, 965M multiply-adds of the context network and tables of {} symbols (64 x 34 of the widest), \
+                 at or near the limits of SPEC 12.1 and 12.7.",
+                wide_table_symbols(34)
+            ),
+            anchor_stream(&every_bound),
         ),
         too_much_blending(
             "plain-500k-needles.pwb",
