@@ -181,6 +181,10 @@ for file in "$hostile"/*.sog; do
     [[ -e $file ]] || continue
     cp "$file" "$corpus/sog/hostile-$(basename "$file")"
 done
+# And the hostile streams (at the per-byte limits of SPEC.md sections 9 and 12) for decode.
+for file in "$hostile"/*.pwb; do
+    cp "$file" "$corpus/decode/hostile-$(basename "$file" .pwb)"
+done
 
 echo "seeded $corpus:"
 for dir in "$corpus"/*/; do
