@@ -19,7 +19,7 @@ run_cargo() {
 }
 
 if [[ -z "${PWENC:-}" || -z "${PWDEC:-}" ]]; then
-    (cd "$repo" && run_cargo build -q -p pwgs-encoder --bin pwenc -p pwgs-pwdec --bin pwdec)
+    (cd "$repo" && run_cargo build -q -p pwgs-pwenc --bin pwenc -p pwgs-pwdec --bin pwdec)
     bin="${CARGO_TARGET_DIR:-$repo/target}/debug"
     PWENC="$bin/pwenc"
     PWDEC="$bin/pwdec"

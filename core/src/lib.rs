@@ -5,7 +5,6 @@
 pub mod atomic_file;
 pub mod camera;
 pub mod camera_json;
-pub mod cli_values;
 pub mod frame;
 pub mod gaussians;
 pub mod ply;

@@ -1,23 +1,29 @@
 //! The workspace's layering (docs/architecture.md section 5): every crate depends only on
 //! crates of lower layers, so that an arrow never runs back up (the dataset loader does not
-//! reach into the codec, the codec does not render). Read from each member's `Cargo.toml`.
+//! reach into the codec, the codec does not render), and only the programs under `apps/`
+//! depend on the command-line crate. Read from each member's `Cargo.toml`.
 
 use std::path::Path;
 
 /// Each member crate's folder, its package name and its layer: 0 holds no pwgs dependency,
 /// and a crate may depend on crates of lower layers only.
-const LAYERS: [(&str, &str, u32); 11] = [
+const LAYERS: [(&str, &str, u32); 16] = [
     ("bitstream-spec", "pwgs-bitstream", 0),
     ("core", "pwgs-core", 0),
     ("rd-report", "pwgs-rd-report", 0),
     ("rating", "pwgs-rating", 0),
+    ("apps/cli", "pwgs-cli", 0),
     ("codec", "pwgs-codec", 1),
     ("dataset", "pwgs-dataset", 1),
     ("render", "pwgs-render", 2),
     ("encoder", "pwgs-encoder", 3),
     ("conformance", "pwgs-conformance", 3),
+    ("player", "pwgs-player", 3),
     ("apps/pwdec", "pwgs-pwdec", 4),
-    ("player", "pwgs-player", 4),
+    ("apps/pwenc", "pwgs-pwenc", 4),
+    ("apps/pwplay", "pwgs-pwplay", 4),
+    ("apps/pwbench", "pwgs-pwbench", 4),
+    ("apps/pwrate", "pwgs-pwrate", 4),
 ];
 
 /// The pwgs crates a manifest names in its `[dependencies]` (not its dev-dependencies: tests
@@ -48,6 +54,8 @@ fn every_crate_depends_only_on_lower_layers() {
         for dependency in pwgs_dependencies(&manifest) {
             let below = layer_of(&dependency).unwrap_or_else(|| panic!("{name} depends on {dependency}, in no layer"));
             assert!(below < layer, "{name} (layer {layer}) depends on {dependency} (layer {below})");
+            let program = dir.starts_with("apps/") && dir != "apps/cli";
+            assert!(dependency != "pwgs-cli" || program, "{name} is no program under apps/ but depends on pwgs-cli");
         }
     }
     let members = workspace.split("members = [").nth(1).and_then(|m| m.split(']').next()).unwrap();

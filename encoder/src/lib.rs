@@ -7,7 +7,6 @@
 //! rendering in `pwgs-render`, everything normative in `pwgs-codec`.
 
 pub mod anchor;
-pub mod exit;
 pub mod metrics;
 pub mod plain;
 pub mod session;

@@ -109,13 +109,7 @@ struct DecodeArgs {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    pwgs_cli::report(run(Cli::parse()))
 }
 
 fn run(cli: Cli) -> Result<()> {

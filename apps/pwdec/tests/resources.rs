@@ -2,7 +2,7 @@
 //! conformance suite and on every hostile stream (`conformance/hostile/`), each under a 1 GiB
 //! address-space limit and within its CPU-time bound (1 s, plus 2 s per megapixel rendered):
 //! refused with its error, or decoded and rendered, never a panic, an abort or a hang. The
-//! importers' hostile files are `pwenc`'s (`encoder/tests/import_resources.rs`).
+//! importers' hostile files are `pwenc`'s (`apps/pwenc/tests/import_resources.rs`).
 //!
 //! One test in this binary: the CPU time of each run is read from this process's children.
 

@@ -3,7 +3,7 @@
 //! anchor base's work, degenerate geometry in importers, decompression bombs). Each is made here
 //! from integers, never copied, and `hostile/expected.json` says which tool reads it and what
 //! must happen: the resource tests (`apps/pwdec/tests/resources.rs`,
-//! `encoder/tests/import_resources.rs`) run that tool on it under a 1 GiB address-space limit
+//! `apps/pwenc/tests/import_resources.rs`) run that tool on it under a 1 GiB address-space limit
 //! and hold it to the outcome and to a CPU-time bound.
 
 mod imports_bombs;

@@ -15,7 +15,7 @@ use pwgs_conformance::resources::{check_run, cpu_bound, run_limited};
 #[test]
 fn every_hostile_splat_file_keeps_to_the_bounds() {
     let pwenc = Path::new(env!("CARGO_BIN_EXE_pwenc"));
-    let conformance = Path::new(env!("CARGO_MANIFEST_DIR")).join("../conformance");
+    let conformance = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance");
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("out.pwb");
     let mut failures = Vec::new();

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
-use pwgs_core::cli_values::parse_vector;
+use pwgs_cli::values::parse_vector;
 use pwgs_encoder::metrics::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};

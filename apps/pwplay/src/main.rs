@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{Result, bail};
 use clap::Parser;
-use pwgs_core::cli_values::parse_vector;
+use pwgs_cli::values::parse_vector;
 use pwgs_player::app::{PlayerOptions, run};
 use pwgs_player::headless::screenshot;
 use pwgs_player::view_mode::{Renderer, ViewMode};
@@ -52,13 +52,7 @@ struct Args {
 }
 
 fn main() -> ExitCode {
-    match start(Args::parse()) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    pwgs_cli::report(start(Args::parse()))
 }
 
 fn start(args: Args) -> Result<()> {

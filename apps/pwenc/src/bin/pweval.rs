@@ -83,7 +83,7 @@ fn pairs(a: &Path, b: &Path) -> Result<Vec<(String, PathBuf, PathBuf)>> {
 }
 
 fn main() -> ExitCode {
-    pwgs_encoder::exit::report(run(Cli::parse()))
+    pwgs_cli::report(run(Cli::parse()))
 }
 
 fn run(cli: Cli) -> Result<()> {

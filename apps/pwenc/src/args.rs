@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, CommandFactory, ValueEnum};
+use pwgs_cli::values::parse_vector;
 use pwgs_codec::stream::anchor_context::MAX_LEVELS;
-use pwgs_core::cli_values::parse_vector;
 use pwgs_dataset::{Dataset, LoadOptions, load_scene};
 use pwgs_encoder::anchor::quantize::AnchorSteps;
 use pwgs_encoder::anchor::train::{ANCHOR_STAGE_TWO_LR_SCALE, StageTwoLambda};

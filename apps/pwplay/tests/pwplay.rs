@@ -29,7 +29,7 @@ fn gpu_present() -> bool {
 }
 
 fn vector(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../conformance/vectors").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../conformance/vectors").join(name)
 }
 
 fn pwplay(args: &[&std::ffi::OsStr]) -> Output {

@@ -1,4 +1,4 @@
-//! Parsers of command-line values that several of the project's binaries take (pwenc, pwplay),
+//! Parsers of command-line values that several of the programs take (pwenc, pwplay),
 //! each refusing what the option cannot mean.
 
 /// Three comma-separated numbers, or `None`.

@@ -2,8 +2,9 @@
 //! report, agreeing with `pweval` on the saved renders. Needs the metric weights (see
 //! `shared_weights` for when their absence skips).
 
-#[path = "../../render/tests/shared_data/mod.rs"]
+#[path = "../../../render/tests/shared_data/mod.rs"]
 mod shared_data;
+#[path = "../../../encoder/tests/shared_weights/mod.rs"]
 mod shared_weights;
 
 use std::process::{Command, Output};

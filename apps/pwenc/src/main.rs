@@ -92,7 +92,7 @@ fn main() -> ExitCode {
     pwgs_encoder::train::heap::restart_with_tunables();
     let matches = Cli::command().get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
-    pwgs_encoder::exit::report(run(cli, &matches))
+    pwgs_cli::report(run(cli, &matches))
 }
 
 fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {

@@ -1,7 +1,7 @@
 //! Parsers of pwenc's option values, each refusing what the option cannot mean.
 
 use clap::ValueEnum;
-use pwgs_core::cli_values::three_numbers;
+use pwgs_cli::values::three_numbers;
 use pwgs_core::splat_file::SpzAxes;
 use pwgs_encoder::anchor::train::StageTwoLambda;
 use pwgs_encoder::metrics::suite::Metric;
