@@ -2,6 +2,7 @@
 
 mod args;
 mod compare_args;
+mod groups;
 mod values;
 mod wrapper_args;
 
@@ -11,7 +12,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use clap::parser::ValueSource;
-use clap::{ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
+use clap::{ArgAction, ArgMatches, CommandFactory, FromArgMatches, Parser, Subcommand};
 use pwgs_core::say;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
@@ -24,13 +25,22 @@ use crate::compare_args::CompareArgs;
 #[command(
     name = "pwenc",
     version,
-    about = "pwgs encoder: trains a 3D Gaussian Splatting scene and writes it as a pwgs stream",
+    about = "pwgs encoder: trains a scene, or compresses a model trained elsewhere, into a pwgs stream",
+    override_usage = "pwenc [OPTIONS] SCENE -o STREAM\n       pwenc --from MODEL -o STREAM [OPTIONS]\n       pwenc <COMMAND>",
+    disable_help_flag = true,
+    disable_help_subcommand = true,
     args_conflicts_with_subcommands = true,
     subcommand_negates_reqs = true
 )]
 pub(crate) struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// Print the main options of each group.
+    #[arg(short, long, action = ArgAction::HelpShort)]
+    help: Option<bool>,
+    /// Print every option, with details.
+    #[arg(long, action = ArgAction::HelpLong)]
+    help_all: Option<bool>,
     #[command(flatten)]
     encode: EncodeArgs,
 }

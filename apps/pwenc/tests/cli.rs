@@ -294,3 +294,29 @@ fn an_option_the_job_would_ignore_is_refused() {
         assert!(!stdout.contains("iteration"), "{args:?} trained before failing: {stdout}");
     }
 }
+
+#[test]
+fn help_gives_the_main_options_by_group_and_help_all_every_option() {
+    let text = |args: &[&str]| {
+        let out = pwenc(args);
+        assert!(out.status.success(), "{args:?}");
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let (short, all) = (text(&["--help"]), text(&["--help-all"]));
+    assert!(short.lines().count() <= 60, "--help is {} lines:\n{short}", short.lines().count());
+    assert_eq!(short, text(&["-h"]));
+    for heading in
+        ["Training:", "Evaluation:", "Perceptual wrapper", "Anchor base", "Plain base", "Import (--from MODEL):"]
+    {
+        assert!(short.contains(heading) && all.contains(heading), "{heading}");
+    }
+    // The main options are in both; experts' knobs and ablations only in --help-all, with details.
+    for option in ["--from", "--lambda", "--quality", "--no-wrapper", "--importance-classes", "--eval"] {
+        assert!(short.contains(option), "{option}");
+    }
+    for option in ["--wd-vgg-blocks", "--no-plucker", "--context-planes", "--position-lr", "--spz-axes"] {
+        assert!(!short.contains(option) && all.contains(option), "{option}");
+    }
+    assert!(all.contains("Niantic") && !short.contains("Niantic"), "details only in --help-all");
+    assert!(all.lines().count() > 3 * short.lines().count() / 2);
+}
