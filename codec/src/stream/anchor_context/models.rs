@@ -265,11 +265,16 @@ mod tests {
         QuantizedContext { shape, signs, mlp }
     }
 
+    /// `n` anchors on an octree of depth 4, x fastest.
+    fn positions(n: u32) -> Vec<[u32; 3]> {
+        (0..n).map(|i| [i % 16, (i / 16) % 16, i / 256]).collect()
+    }
+
     #[test]
     fn the_models_of_many_anchors_are_those_of_each_alone() {
         let context = context(5, predicted_values(9, 2));
         let network = ContextNetwork::new(&context, 4, (9, 2));
-        let positions: Vec<[u32; 3]> = (0..300u32).map(|i| [i % 16, (i / 16) % 16, i / 256]).collect();
+        let positions = positions(300);
         let mut all = Vec::new();
         network.models(&positions, &mut all);
         let mut one = Vec::new();
@@ -286,7 +291,7 @@ mod tests {
     fn tables_past_the_budget_are_refused_before_they_are_built() {
         let context = context(6, predicted_values(9, 2));
         let network = ContextNetwork::new(&context, 4, (9, 2));
-        let positions: Vec<[u32; 3]> = (0..200u32).map(|i| [i % 16, (i / 16) % 16, i / 256]).collect();
+        let positions = positions(200);
         let mut models = Vec::new();
         network.models(&positions, &mut models);
         let run = |budget: u64| -> Result<u64, (usize, TableBudgetExceeded)> {
