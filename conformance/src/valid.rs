@@ -8,12 +8,12 @@ use pwgs_render::show::SceneRender;
 use std::path::Path;
 
 use anyhow::{Context, Result, bail};
+use pwgs_codec::hashing::Hasher;
 use pwgs_codec::stream;
 use pwgs_codec::wrapper::noise::{noise_pyramid, pyramid_sha256};
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::camera_json::parse_camera;
 use serde::Deserialize;
-use sha2::{Digest, Sha256};
 
 use crate::expected::ExpectedVector;
 use crate::vectors_dir;
@@ -34,11 +34,9 @@ pub struct RenderCheck {
 /// SHA-256 (hex) of a wrapper's dequantized parameters in stream order, each as little-endian
 /// binary32 (SPEC.md section 11.4).
 pub fn wrapper_sha256(weights: &SynthesisWeights) -> String {
-    let mut h = Sha256::new();
-    for v in weights.values() {
-        h.update(v.to_le_bytes());
-    }
-    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    let mut h = Hasher::default();
+    h.floats(&weights.values());
+    h.hex()
 }
 
 /// Compares a render with the reference image under the tolerance of SPEC.md section 8.
