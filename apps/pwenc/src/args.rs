@@ -14,7 +14,9 @@ use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::SuiteSettings;
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::plain::train::TrainConfig;
-use pwgs_encoder::session::{AnchorJob, ImportJob, Orbit, SceneJob, StreamOptions};
+use pwgs_encoder::session::{
+    AnchorTraining, BaseTraining, EncodeJob, Input, ModelImport, Orbit, Outputs, PlainTraining,
+};
 
 use crate::groups::{AnchorArgs, EvalArgs, ImportArgs, PlainArgs, TrainingArgs};
 use crate::values::{check_extra_metrics, parse_color};
@@ -142,13 +144,31 @@ impl EncodeArgs {
         LoadOptions { downscale: self.training.downscale, background: self.background, ..Default::default() }
     }
 
-    fn stream(&self) -> Option<StreamOptions> {
-        self.output.clone().map(|path| StreamOptions {
-            path,
-            quality: self.plain.quality,
+    /// The job these arguments describe.
+    pub(crate) fn job(&self) -> Result<EncodeJob> {
+        let input = match (&self.from_ply, &self.scene) {
+            (Some(model), _) => Input::Model(self.model_import(model)),
+            (None, Some(scene)) => Input::Scene {
+                path: scene.clone(),
+                load: self.load_options(),
+                base: match self.base {
+                    Base::Anchor => BaseTraining::Anchor(Box::new(self.anchor_training()?)),
+                    Base::ThreeDgs => BaseTraining::Plain(self.plain_training()?),
+                },
+            },
+            (None, None) => bail!("give a scene to train on, or --from MODEL"),
+        };
+        if matches!(input, Input::Model(_)) && self.output.is_none() {
+            bail!("--from-ply needs -o/--output for the stream");
+        }
+        let outputs = Outputs {
+            stream: self.output.clone(),
             target_bytes: self.target_bytes,
-            prune_faint: self.import.prune_faint,
-        })
+            export_ply: self.training.export_ply.clone(),
+            eval: self.eval_options()?,
+            report: self.report.clone(),
+        };
+        Ok(EncodeJob { input, outputs })
     }
 
     /// `--eval` with its metrics, when given.
@@ -170,8 +190,8 @@ impl EncodeArgs {
         self.eval.weights.iter().cloned().chain(default_dirs()).collect()
     }
 
-    /// `--base anchor`: the anchor training job, refusing what the anchor base cannot do yet.
-    pub(crate) fn anchor_job(&self, scene: &Path) -> Result<AnchorJob> {
+    /// `--base anchor`: the anchor base's training, refusing what it cannot do.
+    fn anchor_training(&self) -> Result<AnchorTraining> {
         let (a, t) = (&self.anchor, &self.training);
         if a.context_planes.len() > MAX_LEVELS {
             bail!("--context-planes takes at most {MAX_LEVELS} levels");
@@ -179,9 +199,7 @@ impl EncodeArgs {
         if !a.context_planes.is_empty() && a.lambda == 0.0 {
             bail!("--context-planes belongs to the context model, which --lambda 0 turns off");
         }
-        Ok(AnchorJob {
-            scene: scene.to_path_buf(),
-            load: self.load_options(),
+        Ok(AnchorTraining {
             iterations: t.iters,
             feature_dim: usize::from(a.anchor_features),
             offsets_per_anchor: usize::from(a.anchor_offsets),
@@ -198,35 +216,30 @@ impl EncodeArgs {
             max_anchors: a.max_anchors,
             learned_steps: !a.fixed_anchor_steps,
             wrapper: self.wrapper.training(t.iters, t.seed, self.weight_dirs(), ANCHOR_STAGE_TWO_LR_SCALE)?,
-            export_ply: t.export_ply.clone(),
-            output: self.output.clone(),
-            target_bytes: self.target_bytes,
-            eval: self.eval_options()?,
-            report: self.report.clone(),
         })
     }
 
-    /// `--from-ply`: the import job.
-    pub(crate) fn import_job(&self, ply: &Path) -> Result<ImportJob> {
+    /// `--from-ply`: the import.
+    fn model_import(&self, model: &Path) -> ModelImport {
         let i = &self.import;
-        Ok(ImportJob {
-            ply: ply.to_path_buf(),
+        ModelImport {
+            path: model.to_path_buf(),
             spz_axes: i.spz_axes.into(),
-            stream: self.stream().context("--from-ply needs -o/--output for the stream")?,
+            quality: self.plain.quality,
+            prune_faint: i.prune_faint,
             background: self.background,
             orbit: i.orbit.map(|views| Orbit { views, up: i.up, size: i.orbit_size }),
             orbit_renders: i.orbit_renders.clone(),
-            report: self.report.clone(),
             importance: i.importance_classes,
             up: i.up,
             search_steps: i.search_steps,
             refit_colours: i.refit_colours,
             refit_shapes: i.refit_shapes.map(usize::from),
-        })
+        }
     }
 
-    /// Training on a scene: the training settings from the options.
-    pub(crate) fn scene_job(&self, scene: &Path) -> Result<SceneJob> {
+    /// `--base 3dgs`: the plain base's training.
+    fn plain_training(&self) -> Result<PlainTraining> {
         let (p, t) = (&self.plain, &self.training);
         let mut config = TrainConfig::for_iterations(t.iters);
         config.wrapper = self.wrapper.training(t.iters, t.seed, self.weight_dirs(), 1.0)?;
@@ -242,16 +255,7 @@ impl EncodeArgs {
         config.background = self.background;
         config.seed = t.seed;
         config.densify.max_gaussians = p.max_gaussians;
-        Ok(SceneJob {
-            scene: scene.to_path_buf(),
-            load: self.load_options(),
-            init_ply: p.init_ply.clone(),
-            config,
-            stream: self.stream(),
-            export_ply: t.export_ply.clone(),
-            eval: self.eval_options()?,
-            report: self.report.clone(),
-        })
+        Ok(PlainTraining { init_ply: p.init_ply.clone(), config, quality: p.quality })
     }
 }
 

@@ -16,9 +16,9 @@ use clap::{ArgAction, ArgMatches, CommandFactory, FromArgMatches, Parser, Subcom
 use pwgs_core::say;
 use pwgs_dataset::synthetic::{SyntheticOptions, generate};
 use pwgs_encoder::metrics::weights_fetch::{LocalArchives, fetch_weights};
-use pwgs_encoder::session::{compare_models, encode_scene, import_ply, train_anchor_scene};
+use pwgs_encoder::session::{self, compare_models};
 
-use crate::args::{Base, EncodeArgs, LoadArgs};
+use crate::args::{EncodeArgs, LoadArgs};
 use crate::compare_args::CompareArgs;
 
 #[derive(Parser)]
@@ -88,14 +88,7 @@ enum Command {
 
 fn encode(args: EncodeArgs, matches: &ArgMatches) -> Result<()> {
     args.check_options(|id| matches.value_source(id) == Some(ValueSource::CommandLine))?;
-    match (&args.from_ply, &args.scene) {
-        (Some(ply), _) => import_ply(&args.import_job(ply)?).map(drop),
-        (None, Some(scene)) if matches!(args.base, Base::Anchor) => {
-            train_anchor_scene(&args.anchor_job(scene)?).map(drop)
-        }
-        (None, Some(scene)) => encode_scene(args.scene_job(scene)?).map(drop),
-        (None, None) => unreachable!("clap requires a scene or --from-ply"),
-    }
+    session::encode(&args.job()?).map(drop)
 }
 
 fn main() -> ExitCode {

@@ -1,42 +1,41 @@
 //! `pwenc SCENE --base anchor`: trains the anchor base (quantization noise, the rate term and,
-//! with `--wrapper`, stage 2 with the perceptual wrapper), quantizes it into an anchor stream
-//! (SPEC.md section 12), decodes that stream and evaluates what a decoder shows.
+//! with a wrapper, stage 2 with the perceptual wrapper), quantizes it into an anchor stream
+//! (SPEC.md section 12), fits it to the target size, and finishes with what a decoder
+//! reconstructs from that stream. The stages: `configure`, `train`, `quantize`, `fit`, then
+//! the pipeline's common finish.
 
-use pwgs_render::show::SceneRender;
-use std::path::PathBuf;
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use pwgs_codec::scene::Base;
+use pwgs_codec::stream::anchor::QuantizedAnchors;
 use pwgs_codec::stream::header::{BaseKind, Header};
+use pwgs_codec::stream::plain::PositionGrid;
+use pwgs_codec::stream::wrap::QuantizedSynthesis;
 use pwgs_codec::stream::{self, Decoded};
+use pwgs_core::camera::Camera;
 use pwgs_core::say;
-use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_dataset::Dataset;
+use pwgs_render::anchor_export::{agreement_psnr, export_gaussians};
+use pwgs_render::raster::{RenderOptions, render};
+use pwgs_render::show::SceneRender;
 use serde::Serialize;
 
-use super::{
-    WrapperSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, section_sizes, write_report,
-};
+use super::job::{Coded, EncodeReport, Finish, RunReport};
+use super::{WrapperSummary, print_wrapper, quantize_wrapper, section_sizes};
 use crate::anchor::context::{ContextLookup, context_shape};
 use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
 use crate::anchor::network_steps::{StepCandidate, StepObjective, choose_context_step, choose_mlp_steps};
-use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize, quantize_context};
+use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize as quantize_anchors, quantize_context};
 use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::anchor::trim::fit_anchors;
-use crate::metrics::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
 use crate::wrapper::stage::WrapperTraining;
-use pwgs_codec::scene::Base;
-use pwgs_codec::stream::anchor::QuantizedAnchors;
-use pwgs_codec::stream::wrap::QuantizedSynthesis;
-use pwgs_core::camera::Camera;
-use pwgs_render::anchor_export::{agreement_psnr, export_gaussians};
-use pwgs_render::raster::{RenderOptions, render};
 
-/// An anchor training run.
+/// Training the anchor base.
 #[derive(Debug, Clone)]
-pub struct AnchorJob {
-    pub scene: PathBuf,
-    pub load: LoadOptions,
+pub struct AnchorTraining {
     pub iterations: u32,
     pub feature_dim: usize,
     pub offsets_per_anchor: usize,
@@ -66,16 +65,18 @@ pub struct AnchorJob {
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
     pub wrapper: Option<WrapperTraining>,
-    /// Write the stream here.
-    pub output: Option<PathBuf>,
-    /// Largest stream size in bytes: the anchors that show least are dropped to fit
-    /// ([`crate::anchor::trim`]).
-    pub target_bytes: Option<u64>,
-    /// Write the decoded anchors as standard Gaussians (SH degree 3 fitted over the training
-    /// cameras) to this PLY.
-    pub export_ply: Option<PathBuf>,
-    pub eval: Option<EvalOptions>,
-    pub report: Option<PathBuf>,
+}
+
+impl AnchorTraining {
+    /// Refuses settings that contradict each other.
+    pub fn check(&self) -> Result<()> {
+        anyhow::ensure!(
+            self.lambda.is_none() || self.quantization_noise,
+            "the rate term (--lambda) needs the quantization noise"
+        );
+        anyhow::ensure!(!self.context || self.lambda.is_some(), "the context model needs the rate term (--lambda > 0)");
+        Ok(())
+    }
 }
 
 /// The anchor stream as written.
@@ -128,22 +129,87 @@ pub struct AnchorReport {
     pub anchors_dropped_to_fit: usize,
     /// The stream (also when none was written to a file: the evaluation renders its decoding).
     pub stream: AnchorStreamSummary,
-    pub mean: Option<MeanScore>,
-    pub views: Vec<ViewScore>,
-    /// Peak resident memory of the whole run, in MiB, where the system says it.
-    pub peak_resident_mib: Option<f64>,
 }
 
-pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
-    anyhow::ensure!(
-        job.lambda.is_none() || job.quantization_noise,
-        "the rate term (--lambda) needs the quantization noise"
-    );
-    anyhow::ensure!(!job.context || job.lambda.is_some(), "the context model needs the rate term (--lambda > 0)");
-    check_outputs(job.output.iter().chain(&job.report).chain(&job.export_ply), job.eval.iter().map(|e| &e.dir))?;
-    let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
-    let data =
-        load_scene(&job.scene, &job.load).with_context(|| format!("cannot load the scene {}", job.scene.display()))?;
+/// Trains the anchor base on `data` (loaded from `scene`), codes its stream and finishes.
+pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish: Finish) -> Result<EncodeReport> {
+    let Configured { mut trainer, grid, anchors, voxel } = configure(job, data)?;
+    let trained = train(job, &mut trainer)?;
+    let Quantized { content, header, steps, context_step_log2, wrapper } = quantize(job, data, &trainer, &grid)?;
+    let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
+    let fitted = fit(content, (&header, wrapper.as_ref()), finish.outputs.size_limit(), &cameras)?;
+    if let Some(target) = finish.outputs.target_bytes {
+        say!("target {target} bytes: {} least important anchors dropped to fit", fitted.dropped);
+    }
+    let shown = &fitted.decoded.scene;
+    let export = || {
+        let Base::Anchors(model) = &shown.base else { anyhow::bail!("an anchor stream decoded to plain Gaussians") };
+        let export = export_gaussians(model, &cameras);
+        // Checked on the test views (the fit saw only the training views).
+        let test: Vec<Camera> = data.test.iter().map(|v| v.camera).collect();
+        let checked = if test.is_empty() { &cameras[..cameras.len().min(8)] } else { &test[..] };
+        let psnr = agreement_psnr(model, &export, checked, &shown.render_options());
+        say!("export: SH degree 3 fitted, PSNR {psnr:.2} dB against the anchor renders of {} views", checked.len());
+        Ok(export)
+    };
+    let coded = Coded { stream: Some(&fitted.bytes), shown, test: &data.test, export: Some(&export) };
+    let stream_path = finish.outputs.stream.as_ref().map(|p| p.display().to_string());
+    let target_bytes = finish.outputs.target_bytes;
+    finish.finish(coded, || {
+        let first = &data.train[0].image;
+        let stream = AnchorStreamSummary {
+            path: stream_path,
+            bytes: fitted.bytes.len(),
+            feature_step: steps.feature,
+            scaling_step: steps.scaling,
+            offset_step: steps.offset,
+            weight_step_log2: fitted.content.mlps[0].weight_exponent,
+            bias_step_log2: fitted.content.mlps[0].bias_exponent,
+            context_step_log2,
+            sections: section_sizes(&fitted.bytes),
+            attribute_sha256: shown.attribute_hash(),
+            wrapper: wrapper.as_ref().map(WrapperSummary::of),
+        };
+        Ok(RunReport::Anchor(Box::new(AnchorReport {
+            scene: scene.display().to_string(),
+            base: "anchor",
+            resolution: [first.width, first.height],
+            train_views: data.train.len(),
+            test_views: data.test.len(),
+            anchors,
+            feature_dim: job.feature_dim,
+            offsets_per_anchor: job.offsets_per_anchor,
+            voxel,
+            iterations: trained.iterations,
+            training_seconds: trained.seconds,
+            last_step_gaussians: trained.last_step_gaussians,
+            quantization_noise: job.quantization_noise,
+            lambda: job.lambda,
+            stage_two_lambda_factor: trained.stage_two_lambda_factor,
+            estimated_attribute_bytes: trained.estimated_attribute_bytes,
+            context_grid_bytes: trained.context_grid_bytes,
+            growth: trained.growth,
+            stream_anchors: fitted.content.len(),
+            target_bytes,
+            anchors_dropped_to_fit: fitted.dropped,
+            stream,
+        })))
+    })
+}
+
+/// A trainer set up for a job, with the grid its anchors sit on.
+struct Configured {
+    trainer: AnchorTrainer,
+    grid: PositionGrid,
+    /// Anchors at the start.
+    anchors: usize,
+    /// The voxel edge, in scene units.
+    voxel: f32,
+}
+
+/// Places the initial anchors on the scene's points and sets the trainer up with every term
+/// `job` asks for.
+fn configure(job: &AnchorTraining, data: &Dataset) -> Result<Configured> {
     let points = data.points.as_ref().context("the anchor base starts from the scene's SfM points; it has none")?;
     let voxel = job.relative_voxel * data.normalization.scale;
     let shape = AnchorShape { feature_dim: job.feature_dim, offsets_per_anchor: job.offsets_per_anchor, voxel };
@@ -157,7 +223,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
     );
     let stage_two = job.wrapper.as_ref().map_or(0, |w| w.stage_two_steps(data.train.len()));
     let total = job.iterations.saturating_add(stage_two);
-    let mut trainer = AnchorTrainer::new(&initial, &data, total, job.background, job.seed)?;
+    let mut trainer = AnchorTrainer::new(&initial, data, total, job.background, job.seed)?;
     if let Some(w) = &job.wrapper {
         trainer = trainer.with_wrapper(w.clone())?.with_stage_two_lambda(job.stage_two_lambda);
         say!(
@@ -201,6 +267,22 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         );
         trainer = trainer.with_growth(schedule);
     }
+    Ok(Configured { trainer, grid, anchors: initial.len(), voxel })
+}
+
+/// What training measured, for the report.
+struct Trained {
+    iterations: u32,
+    seconds: f64,
+    last_step_gaussians: usize,
+    stage_two_lambda_factor: Option<f32>,
+    estimated_attribute_bytes: Option<f64>,
+    context_grid_bytes: Option<f64>,
+    growth: Option<GrowthTotals>,
+}
+
+/// Runs every iteration of both stages, with a line every 100.
+fn train(job: &AnchorTraining, trainer: &mut AnchorTrainer) -> Result<Trained> {
     let start = Instant::now();
     let mut last_step_gaussians = 0;
     let mut last_bits = None;
@@ -218,8 +300,8 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
             );
         }
     }
-    let training_seconds = start.elapsed().as_secs_f64();
-    say!("trained {} iterations in {training_seconds:.1} s", trainer.iteration);
+    let seconds = start.elapsed().as_secs_f64();
+    say!("trained {} iterations in {seconds:.1} s", trainer.iteration);
     let stage_two_lambda_factor = (job.wrapper.is_some() && job.lambda.is_some()).then(|| trainer.lambda_factor());
     if let Some(factor) = stage_two_lambda_factor {
         say!("stage 2 ended with λ x {factor:.2}");
@@ -237,6 +319,30 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         let model = if job.context { "context" } else { "factorized" };
         say!("rate model ({model}) estimate: attributes, anchor positions and masks {bytes:.0} bytes{grid}");
     }
+    Ok(Trained {
+        iterations: trainer.iteration,
+        seconds,
+        last_step_gaussians,
+        stage_two_lambda_factor,
+        estimated_attribute_bytes,
+        context_grid_bytes,
+        growth,
+    })
+}
+
+/// The trained anchors as a stream codes them, before any are dropped for size.
+struct Quantized {
+    content: QuantizedAnchors,
+    header: Header,
+    /// The attribute steps: learned, or the job's.
+    steps: AnchorSteps,
+    context_step_log2: Option<i8>,
+    wrapper: Option<QuantizedSynthesis>,
+}
+
+/// Quantizes the anchors with the learned steps, chooses the networks' steps (the context
+/// network's for the fewest bytes, the Gaussian MLPs' by rate-distortion) and the wrapper's.
+fn quantize(job: &AnchorTraining, data: &Dataset, trainer: &AnchorTrainer, grid: &PositionGrid) -> Result<Quantized> {
     let steps = trainer.steps().unwrap_or(job.steps);
     if steps != job.steps {
         say!(
@@ -250,7 +356,7 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
         );
     }
     let model = trainer.model();
-    let mut content = quantize(&model, &grid, &steps)?;
+    let mut content = quantize_anchors(&model, grid, &steps)?;
     let header = Header {
         base: BaseKind::Anchors,
         gaussian_count: u32::try_from(content.len()).context("too many anchors for a stream")?,
@@ -284,88 +390,35 @@ pub fn train_anchor_scene(job: &AnchorJob) -> Result<AnchorReport> {
             let (_, Decoded { scene: stored, .. }) = encode_and_decode(&header, &content, None)?;
             let options = RenderOptions { background: job.background, ..Default::default() };
             let base_render = |camera: &Camera| render(&stored.gaussians_for(camera), camera, &options).data;
-            let w = quantize_wrapper(&weights, &base_render, &data, data.normalization.frame());
+            let w = quantize_wrapper(&weights, &base_render, data, data.normalization.frame());
             print_wrapper(&w);
             Some(w)
         }
         None => None,
     };
-    // Without a target every anchor fits: the stream is written once, nothing is ranked.
-    let target = job.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
-    let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
-    let (content, bytes, dropped) = fit_anchors(content, &header, wrapper.as_ref(), target, &cameras)?;
-    if let Some(target) = job.target_bytes {
-        say!("target {target} bytes: {dropped} least important anchors dropped to fit");
-    }
-    let Decoded { scene, .. } = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
-    if let Some(path) = &job.output {
-        pwgs_core::atomic_file::write_atomically(path, &bytes)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-        say!("wrote {} ({} bytes, {} anchors)", path.display(), bytes.len(), content.len());
-    }
-    if let (Some(path), Base::Anchors(model)) = (&job.export_ply, &scene.base) {
-        let export = export_gaussians(model, &cameras);
-        // Checked on the test views (the fit saw only the training views).
-        let test: Vec<Camera> = data.test.iter().map(|v| v.camera).collect();
-        let checked = if test.is_empty() { &cameras[..cameras.len().min(8)] } else { &test[..] };
-        let psnr = agreement_psnr(model, &export, checked, &scene.render_options());
-        pwgs_core::ply::write_gaussians(path, &export)?;
-        say!(
-            "wrote {} Gaussians (SH degree 3) to {}: PSNR {psnr:.2} dB against the anchor renders of {} views",
-            export.len(),
-            path.display(),
-            checked.len()
-        );
-    }
-    let stream_summary = AnchorStreamSummary {
-        path: job.output.as_ref().map(|p| p.display().to_string()),
-        bytes: bytes.len(),
-        feature_step: steps.feature,
-        scaling_step: steps.scaling,
-        offset_step: steps.offset,
-        weight_step_log2: content.mlps[0].weight_exponent,
-        bias_step_log2: content.mlps[0].bias_exponent,
-        context_step_log2,
-        sections: section_sizes(&bytes),
-        attribute_sha256: scene.attribute_hash(),
-        wrapper: wrapper.as_ref().map(WrapperSummary::of),
-    };
-    let (views, mean) = match &evaluation {
-        Some(e) => e.run(&scene, &data.test).map(|(views, mean)| (views, Some(mean)))?,
-        None => (Vec::new(), None),
-    };
-    let first = &data.train[0].image;
-    let report = AnchorReport {
-        scene: job.scene.display().to_string(),
-        base: "anchor",
-        resolution: [first.width, first.height],
-        train_views: data.train.len(),
-        test_views: data.test.len(),
-        anchors: initial.len(),
-        feature_dim: job.feature_dim,
-        offsets_per_anchor: job.offsets_per_anchor,
-        voxel,
-        iterations: trainer.iteration,
-        training_seconds,
-        last_step_gaussians,
-        quantization_noise: job.quantization_noise,
-        lambda: job.lambda,
-        stage_two_lambda_factor,
-        estimated_attribute_bytes,
-        context_grid_bytes,
-        growth,
-        stream_anchors: content.len(),
-        target_bytes: job.target_bytes,
-        anchors_dropped_to_fit: dropped,
-        stream: stream_summary,
-        mean,
-        views,
-        peak_resident_mib: peak_resident_mib(),
-    };
-    if let Some(path) = &job.report {
-        write_report(path, &report)?;
-    }
-    Ok(report)
+    Ok(Quantized { content, header, steps, context_step_log2, wrapper })
+}
+
+/// The stream fitted to a size, and what a decoder reconstructs from it.
+struct Fitted {
+    content: QuantizedAnchors,
+    bytes: Vec<u8>,
+    /// Anchors dropped to fit.
+    dropped: usize,
+    decoded: Decoded,
+}
+
+/// Drops the anchors that show least over `cameras` until the stream fits in `limit` bytes
+/// (without a limit every anchor fits: the stream is written once, nothing is ranked).
+fn fit(
+    content: QuantizedAnchors,
+    (header, wrapper): (&Header, Option<&QuantizedSynthesis>),
+    limit: usize,
+    cameras: &[Camera],
+) -> Result<Fitted> {
+    let (content, bytes, dropped) = fit_anchors(content, header, wrapper, limit, cameras)?;
+    let decoded = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
+    Ok(Fitted { content, bytes, dropped, decoded })
 }
 
 /// One line per candidate of the MLP step choice, and the steps chosen.

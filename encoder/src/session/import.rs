@@ -1,5 +1,5 @@
-//! `pwenc --from-ply`: compress a 3DGS model trained elsewhere, optionally checking the decoded
-//! stream's renders against the model's own on an orbit.
+//! `pwenc --from MODEL`: compress a 3DGS model trained elsewhere, optionally checking the
+//! decoded stream's renders against the model's own on an orbit.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -13,7 +13,8 @@ use pwgs_core::splat_file::SpzAxes;
 use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
-use super::{StreamOptions, StreamSummary, check_outputs, read_model, write_report, write_stream};
+use super::job::{Coded, EncodeReport, Finish, RunReport};
+use super::{StreamOptions, StreamSummary, code_stream, read_model};
 use crate::metrics::psnr::{psnr, psnr_of_mse};
 use crate::plain::colour_refit::{self, RefitOutcome};
 use crate::plain::compress::{Coding, QuantizerSettings, StreamContext};
@@ -31,18 +32,22 @@ pub struct Orbit {
     pub size: u32,
 }
 
-/// Everything an import does.
+/// Compressing a model trained elsewhere.
 #[derive(Debug, Clone)]
-pub struct ImportJob {
-    pub ply: PathBuf,
+pub struct ModelImport {
+    /// An INRIA PLY, PlayCanvas's compressed PLY, `.splat`, `.spz` or SOG, by extension.
+    pub path: PathBuf,
     /// The axes of an `.spz` input that names none.
     pub spz_axes: SpzAxes,
-    pub stream: StreamOptions,
+    /// The stream's quality level, 0 (smallest) to
+    /// [`MAX_QUALITY`](crate::plain::compress::MAX_QUALITY).
+    pub quality: u8,
+    /// With importance weights: drop the Gaussians too faint to pay for their bytes.
+    pub prune_faint: bool,
     pub background: [f32; 3],
     pub orbit: Option<Orbit>,
     /// Save the orbit's renders (input and decoded) as PNGs here.
     pub orbit_renders: Option<PathBuf>,
-    pub report: Option<PathBuf>,
     /// Code the Gaussians in importance classes by how much they show from all around
     /// (SPEC.md section 6.5).
     pub importance: bool,
@@ -78,26 +83,50 @@ pub struct ImportReport {
     pub shape_refit: Option<ShapeRefitOutcome>,
 }
 
-pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
-    check_outputs([&job.stream.path].into_iter().chain(&job.report), &job.orbit_renders)?;
-    let ply = &job.ply;
+/// Codes the model `job` names into the stream of `finish`'s outputs, and finishes: the orbit,
+/// when asked for, scores the decoded stream against the input once the stream is written.
+pub(super) fn run(job: &ModelImport, finish: Finish) -> Result<EncodeReport> {
+    let ply = &job.path;
+    let path = finish.outputs.stream.clone().context("an import needs a stream to write (-o)")?;
     let gaussians = read_model(ply, job.spz_axes)?;
     let ply_bytes = std::fs::metadata(ply).with_context(|| format!("cannot read {}", ply.display()))?.len();
     let context = StreamContext::from_gaussians(&gaussians, job.background);
     let options = RenderOptions { background: job.background, ..Default::default() };
     let plan = plan_coding(job, &gaussians, &context, &options)?;
     let coded = plan.refitted.as_ref().unwrap_or(&gaussians);
+    let stream_options = StreamOptions {
+        path,
+        quality: job.quality,
+        target_bytes: finish.outputs.target_bytes,
+        prune_faint: job.prune_faint,
+    };
     let (compressed, stream) =
-        write_stream(coded, (&context, &plan.settings), &job.stream, None, plan.weights.as_deref())?;
+        code_stream(coded, (&context, &plan.settings), &stream_options, None, plan.weights.as_deref())?;
     let ratio = ply_bytes as f64 / stream.bytes as f64;
     say!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), stream.path, stream.bytes);
+    let decoded_scene = &compressed.decoded.scene;
+    let coded = Coded { stream: Some(&compressed.bytes), shown: decoded_scene, test: &[], export: None };
+    finish.finish(coded, || {
+        let orbit_psnr = score_orbit(job, gaussians, decoded_scene, &context)?;
+        Ok(RunReport::Model(Box::new(import_report(job, ply_bytes, stream, orbit_psnr, plan))))
+    })
+}
+
+/// PSNR of the decoded stream's renders against the input model's on `job`'s orbit (none
+/// without one), saving the renders when asked.
+fn score_orbit(
+    job: &ModelImport,
+    input: Gaussians,
+    decoded_scene: &Scene,
+    context: &StreamContext,
+) -> Result<Vec<f64>> {
+    let options = RenderOptions { background: job.background, ..Default::default() };
     let mut orbit_psnr = Vec::new();
     if let Some(orbit) = &job.orbit {
-        let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)
-            .with_context(|| views_problem("orbit", &context))?;
-        let decoded_scene = &compressed.decoded.scene;
+        let cameras = orbit_cameras(context, Vec3::from(orbit.up), orbit.views, orbit.size)
+            .with_context(|| views_problem("orbit", context))?;
         let (frame, background) = (decoded_scene.frame, decoded_scene.background);
-        let input = Scene { base: Base::Plain(gaussians), wrapper: None, frame, background };
+        let input = Scene { base: Base::Plain(input), wrapper: None, frame, background };
         let reference = renders(&input, &cameras, &options);
         let decoded = renders(decoded_scene, &cameras, &options);
         orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
@@ -111,13 +140,24 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
             say!("orbit view {i:>3}: PSNR {p:.2} dB against the input model");
         }
     }
+    Ok(orbit_psnr)
+}
+
+fn import_report(
+    job: &ModelImport,
+    ply_bytes: u64,
+    stream: StreamSummary,
+    orbit_psnr: Vec<f64>,
+    plan: CodingPlan,
+) -> ImportReport {
     let mean = (!orbit_psnr.is_empty()).then(|| orbit_psnr.iter().sum::<f64>() / orbit_psnr.len() as f64);
     let min = orbit_psnr.iter().copied().reduce(f64::min);
     if let (Some(mean), Some(min)) = (mean, min) {
         say!("orbit: mean PSNR {mean:.2} dB, lowest {min:.2} dB over {} views", orbit_psnr.len());
     }
-    let report = ImportReport {
-        input: ply.display().to_string(),
+    let ratio = ply_bytes as f64 / stream.bytes as f64;
+    ImportReport {
+        input: job.path.display().to_string(),
         ply_bytes,
         stream,
         compression_ratio: ratio,
@@ -129,11 +169,7 @@ pub fn import_ply(job: &ImportJob) -> Result<ImportReport> {
         step_search: plan.step_search,
         colour_refit: plan.colour_refit,
         shape_refit: plan.shape_refit,
-    };
-    if let Some(path) = &job.report {
-        write_report(path, &report)?;
     }
-    Ok(report)
 }
 
 /// What to say when views around the model cannot be placed: cameras are binary32, and a model
@@ -176,14 +212,14 @@ struct CodingPlan {
 }
 
 fn plan_coding(
-    job: &ImportJob,
+    job: &ModelImport,
     gaussians: &Gaussians,
     context: &StreamContext,
     options: &RenderOptions,
 ) -> Result<CodingPlan> {
     let mut plan = CodingPlan {
         weights: None,
-        settings: QuantizerSettings::for_quality(job.stream.quality),
+        settings: QuantizerSettings::for_quality(job.quality),
         step_search: None,
         refitted: None,
         colour_refit: None,
@@ -207,15 +243,9 @@ fn plan_coding(
     if job.search_steps {
         let start = Instant::now();
         let views: Vec<_> = cameras.iter().step_by(SEARCH_VIEW_STRIDE).cloned().collect();
-        let probe = Probe {
-            gaussians,
-            weights: &weights,
-            prune_faint: job.stream.prune_faint,
-            context,
-            cameras: &views,
-            options,
-        };
-        let outcome = step_search::search(&probe, job.stream.quality)?;
+        let probe =
+            Probe { gaussians, weights: &weights, prune_faint: job.prune_faint, context, cameras: &views, options };
+        let outcome = step_search::search(&probe, job.quality)?;
         print_search(&outcome, views.len(), start.elapsed().as_secs_f64());
         plan.settings = outcome.settings.clone();
         plan.step_search = Some(outcome);
@@ -223,7 +253,7 @@ fn plan_coding(
     if job.refit_shapes.is_some() {
         plan.settings.faint_weight *= REFIT_FAINT_FACTOR;
     }
-    let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.stream.prune_faint };
+    let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.prune_faint };
     if let Some(epochs) = job.refit_shapes {
         let start = Instant::now();
         let (refitted, outcome) = shape_refit::refit_shapes(gaussians, coding, context, (&cameras, options), epochs)?;

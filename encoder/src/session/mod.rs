@@ -1,12 +1,14 @@
 //! Whole encoder runs as a library (docs/architecture.md section 2.1): what `pwenc` does once its
-//! arguments are parsed, so that the player and scripts can run the same pipeline. Each job
-//! checks its outputs before any work, writes every file atomically, and reports what it
-//! wrote as JSON-ready summaries.
+//! arguments are parsed, so that the player and scripts can run the same pipeline. One job type
+//! ([`EncodeJob`]) names the input and the outputs; [`encode`] runs the input's stages (plain
+//! training, anchor training, or an import) and ends every one the same way (write, export,
+//! evaluate, report), with one report type ([`EncodeReport`]).
 
 mod anchor;
 mod compare;
 mod import;
-mod scene;
+mod job;
+mod plain;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -27,14 +29,15 @@ use pwgs_core::camera::Camera;
 use pwgs_core::frame::SceneFrame;
 use pwgs_dataset::Dataset;
 
-pub use anchor::{AnchorJob, AnchorReport, train_anchor_scene};
+pub use anchor::{AnchorReport, AnchorStreamSummary, AnchorTraining};
 pub use compare::{CompareJob, CompareReport, compare_models};
-pub use import::{ImportJob, ImportReport, Orbit, import_ply};
-pub use scene::{Report, SceneJob, encode_scene};
+pub use import::{ImportReport, ModelImport, Orbit};
+pub use job::{BaseTraining, EncodeJob, EncodeReport, Input, Outputs, RunReport, encode};
+pub use plain::{PlainReport, PlainTraining};
 
-/// Where and how to write a stream.
+/// How a plain stream is coded.
 #[derive(Debug, Clone)]
-pub struct StreamOptions {
+struct StreamOptions {
     pub path: PathBuf,
     /// 0 (smallest) to [`MAX_QUALITY`](crate::plain::compress::MAX_QUALITY).
     pub quality: u8,
@@ -96,9 +99,9 @@ impl WrapperSummary {
     }
 }
 
-/// Compresses `g` with `settings` into the stream `options` names and decodes it back through
-/// the decoder library.
-fn write_stream(
+/// Compresses `g` with `settings` into the stream `options` names (written by
+/// [`job::Finish`]) and decodes it back through the decoder library.
+fn code_stream(
     g: &Gaussians,
     (context, settings): (&StreamContext, &QuantizerSettings),
     options: &StreamOptions,
@@ -110,8 +113,6 @@ fn write_stream(
     let coding = Coding { settings, weights, prune_faint: options.prune_faint };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
-    pwgs_core::atomic_file::write_atomically(path, &compressed.bytes)
-        .with_context(|| format!("cannot write {}", path.display()))?;
     let sections = section_sizes(&compressed.bytes);
     let header = &compressed.decoded.header;
     let summary = StreamSummary {
@@ -132,8 +133,7 @@ fn write_stream(
         seconds: start.elapsed().as_secs_f64(),
     };
     say!(
-        "wrote {} ({} bytes, {} Gaussians, SH degree {}, {} invisible dropped) in {:.2} s",
-        path.display(),
+        "coded {} bytes: {} Gaussians, SH degree {}, {} invisible dropped, in {:.2} s",
         summary.bytes,
         summary.gaussians,
         summary.sh_degree,

@@ -1,47 +1,39 @@
-//! `pwenc SCENE`: train on a scene's views, then write the stream, evaluate what a decoder
-//! shows, and report.
+//! `pwenc SCENE --base 3dgs`: train plain Gaussians on a scene's views, then code the stream
+//! and finish (write, export, evaluate, report).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use pwgs_codec::scene::{Base, Scene};
 use pwgs_codec::stream::wrap::QuantizedSynthesis;
 use pwgs_core::camera::Camera;
 use pwgs_core::say;
-use pwgs_dataset::{LoadOptions, load_scene};
+use pwgs_dataset::Dataset;
 use pwgs_render::raster::{RenderOptions, render};
 use serde::Serialize;
 
-use super::{
-    StreamOptions, StreamSummary, check_outputs, peak_resident_mib, print_wrapper, quantize_wrapper, read_ply,
-    write_report, write_stream,
-};
-use crate::metrics::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use super::job::{Coded, EncodeReport, Finish, RunReport, export_ply};
+use super::{StreamOptions, StreamSummary, code_stream, print_wrapper, quantize_wrapper, read_ply};
 use crate::plain::compress::{QuantizerSettings, StreamContext};
 use crate::plain::init::initial_gaussians;
 use crate::plain::train::{TrainConfig, TrainSummary, Trainer, train};
 
-/// Everything a training run does. `config.background` is also the scene's background.
+/// Training the plain base. `config.background` is also the scene's background.
 #[derive(Debug, Clone)]
-pub struct SceneJob {
-    pub scene: PathBuf,
-    pub load: LoadOptions,
+pub struct PlainTraining {
     /// Start from this INRIA PLY instead of the scene's points.
     pub init_ply: Option<PathBuf>,
     pub config: TrainConfig,
-    pub stream: Option<StreamOptions>,
-    /// Write the trained Gaussians as an INRIA PLY.
-    pub export_ply: Option<PathBuf>,
-    /// Render the test views and score them.
-    pub eval: Option<EvalOptions>,
-    pub report: Option<PathBuf>,
+    /// The stream's quality level, 0 (smallest) to
+    /// [`MAX_QUALITY`](crate::plain::compress::MAX_QUALITY).
+    pub quality: u8,
 }
 
 #[derive(Serialize)]
-pub struct Report {
+pub struct PlainReport {
     pub scene: String,
     pub format: &'static str,
     pub base: &'static str,
@@ -53,35 +45,19 @@ pub struct Report {
     /// Size of the trained model as an uncompressed INRIA PLY.
     pub ply_bytes: usize,
     pub stream: Option<StreamSummary>,
-    /// Scores of the decoded stream when one was written, else of the trained model.
-    pub mean: Option<MeanScore>,
-    pub views: Vec<ViewScore>,
-    /// Peak resident memory of the whole run, in MiB, where the system says it.
-    pub peak_resident_mib: Option<f64>,
 }
 
-pub fn encode_scene(job: SceneJob) -> Result<Report> {
-    let files = job.stream.iter().map(|s| &s.path).chain(&job.report).chain(&job.export_ply);
-    check_outputs(files, job.eval.iter().map(|e| &e.dir))?;
-    let evaluation = job.eval.as_ref().map(Evaluation::prepare).transpose()?;
-    let scene = &job.scene;
-    let start = Instant::now();
-    let data = load_scene(scene, &job.load).with_context(|| format!("cannot load the scene {}", scene.display()))?;
-    let load_seconds = start.elapsed().as_secs_f64();
-    let first = &data.train[0].image;
-    say!(
-        "{}: {} ({} train / {} test views, {}x{})",
-        scene.display(),
-        data.format,
-        data.train.len(),
-        data.test.len(),
-        first.width,
-        first.height
-    );
+/// Trains plain Gaussians on `data` (loaded from `scene` in `load_seconds`), codes the stream
+/// when one is asked for, and finishes.
+pub(super) fn run(
+    job: &PlainTraining,
+    (scene, data, load_seconds): (&Path, &Dataset, f64),
+    finish: Finish,
+) -> Result<EncodeReport> {
     let cap = job.config.densify.max_gaussians;
     let initial = match &job.init_ply {
         Some(path) => read_ply(path)?,
-        None => initial_gaussians(&data, job.config.seed, cap)?,
+        None => initial_gaussians(data, job.config.seed, cap)?,
     };
     if let Some(points) = data.points.as_ref().filter(|p| job.init_ply.is_none() && p.positions.len() > cap) {
         say!("initialization: {} of the {} SfM points (--max-gaussians {cap})", initial.len(), points.positions.len());
@@ -100,72 +76,76 @@ pub fn encode_scene(job: SceneJob) -> Result<Report> {
     }
     let background = config.background;
     let iterations = config.iterations;
-    let mut trainer = Trainer::new(config, &data, &initial, Device::flex())?;
+    let mut trainer = Trainer::new(config, data, &initial, Device::flex())?;
     let result = train_with_progress(&mut trainer, iterations);
-    // Whatever happened in training, the model holds its last good state: save it.
     let gaussians = trainer.gaussians();
-    if let Some(path) = &job.export_ply {
-        pwgs_core::ply::write_gaussians(path, &gaussians)?;
-        say!("wrote {} Gaussians to {}", gaussians.len(), path.display());
-    }
-    let training = result?;
+    let training = match result {
+        Ok(training) => training,
+        Err(e) => {
+            // The model holds its last good state: save it before saying what went wrong.
+            if let Some(path) = &finish.outputs.export_ply {
+                export_ply(path, &gaussians)?;
+            }
+            return Err(e);
+        }
+    };
     say!("trained {} iterations in {:.1} s: {} Gaussians", training.iterations, training.seconds, training.gaussians);
     let n = data.normalization;
     let frame = n.frame();
     let options = RenderOptions { background, ..Default::default() };
     let base_render = |camera: &Camera| render(&gaussians, camera, &options).data;
-    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &base_render, &data, frame));
+    let wrapper = trainer.synthesis().map(|w| quantize_wrapper(&w, &base_render, data, frame));
     if let Some(w) = &wrapper {
         print_wrapper(w);
     }
-    let stream = match &job.stream {
-        Some(stream) => {
+    let (compressed, summary) = match &finish.outputs.stream {
+        Some(path) => {
             let context = StreamContext { center: n.center.to_array(), scale: n.scale, background };
-            Some(write_stream(
-                &gaussians,
-                (&context, &QuantizerSettings::for_quality(stream.quality)),
-                stream,
-                wrapper.as_ref(),
-                None,
-            )?)
+            let options = StreamOptions {
+                path: path.clone(),
+                quality: job.quality,
+                target_bytes: finish.outputs.target_bytes,
+                prune_faint: false,
+            };
+            let settings = QuantizerSettings::for_quality(job.quality);
+            let (compressed, summary) =
+                code_stream(&gaussians, (&context, &settings), &options, wrapper.as_ref(), None)?;
+            (Some(compressed), Some(summary))
         }
-        None => None,
+        None => (None, None),
     };
-    let ply_bytes = pwgs_core::ply::inria_ply_size(&gaussians);
     // What is evaluated is what a decoder shows: the decoded stream when there is one, else the
     // trained model with the wrapper's dequantized weights.
     let trained;
-    let shown = match &stream {
-        Some((c, _)) => &c.decoded.scene,
+    let shown = match &compressed {
+        Some(c) => &c.decoded.scene,
         None => {
             let wrapper = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
-            trained = Scene { base: Base::Plain(gaussians), wrapper, frame, background };
+            trained = Scene { base: Base::Plain(gaussians.clone()), wrapper, frame, background };
             &trained
         }
     };
-    let (views, mean) = match &evaluation {
-        Some(e) => e.run(shown, &data.test).map(|(views, mean)| (views, Some(mean)))?,
-        None => (Vec::new(), None),
+    let first = &data.train[0].image;
+    let coded = Coded {
+        stream: compressed.as_ref().map(|c| &c.bytes[..]),
+        shown,
+        test: &data.test,
+        export: Some(&|| Ok(gaussians.clone())),
     };
-    let report = Report {
-        scene: scene.display().to_string(),
-        format: data.format,
-        base: "3dgs",
-        resolution: [first.width, first.height],
-        train_views: data.train.len(),
-        test_views: data.test.len(),
-        load_seconds,
-        training,
-        ply_bytes,
-        stream: stream.map(|(_, summary)| summary),
-        mean,
-        views,
-        peak_resident_mib: peak_resident_mib(),
-    };
-    if let Some(path) = &job.report {
-        write_report(path, &report)?;
-    }
-    Ok(report)
+    finish.finish(coded, || {
+        Ok(RunReport::Plain(Box::new(PlainReport {
+            scene: scene.display().to_string(),
+            format: data.format,
+            base: "3dgs",
+            resolution: [first.width, first.height],
+            train_views: data.train.len(),
+            test_views: data.test.len(),
+            load_seconds,
+            training,
+            ply_bytes: pwgs_core::ply::inria_ply_size(&gaussians),
+            stream: summary,
+        })))
+    })
 }
 
 /// Trains to the end, with a progress bar on a terminal and a line every 100 iterations
