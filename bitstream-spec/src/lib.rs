@@ -4,7 +4,7 @@
 //!
 //! This crate knows nothing about Gaussians: it turns bytes into verified sections and back.
 #![cfg_attr(not(test), deny(clippy::disallowed_methods))]
-//! What a section means is the decoder's business (`pwgs-decoder`'s `stream` module).
+//! What a section means is the decoder's business (`pwgs-codec`'s `stream` module).
 
 mod container;
 mod fields;

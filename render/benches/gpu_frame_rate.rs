@@ -2,7 +2,7 @@
 //! random scenes of 10k, 100k and 1M Gaussians at 1600x1063, without and with a width-16
 //! wrapper, against the CPU reference's time for the same picture and the largest difference
 //! between the two (speed against error). Run with
-//! `cargo bench -p pwgs-decoder --features gpu --bench gpu_frame_rate` (add `-- --quick` for
+//! `cargo bench -p pwgs-render --features gpu --bench gpu_frame_rate` (add `-- --quick` for
 //! 10k and 100k at 800x532). It renders on the first adapter wgpu offers (lavapipe where there
 //! is no GPU): report the figures with the adapter it prints.
 

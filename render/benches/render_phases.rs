@@ -3,7 +3,7 @@
 //! and blending, each timed alone, with the tile-list entries blended and their work units
 //! ([`ListEnds::work`](pwgs_render::raster::tile_lists::ListEnds), no work limit). For the heavy streams of
 //! `limit-streams` and the hostile files:
-//! `cargo bench -p pwgs-decoder --bench render_phases -- STREAM CAMERA.json` (one run; report
+//! `cargo bench -p pwgs-render --bench render_phases -- STREAM CAMERA.json` (one run; report
 //! the figures with the machine and the thread count).
 
 use pwgs_render::show::SceneRender;
@@ -19,7 +19,7 @@ fn main() -> Result<()> {
     // cargo bench passes `--bench` after the user's arguments.
     let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
     let [stream, camera] = &args[..] else {
-        anyhow::bail!("usage: cargo bench -p pwgs-decoder --bench render_phases -- STREAM CAMERA.json");
+        anyhow::bail!("usage: cargo bench -p pwgs-render --bench render_phases -- STREAM CAMERA.json");
     };
     let bytes = std::fs::read(stream).with_context(|| format!("cannot read {stream}"))?;
     let text = std::fs::read_to_string(camera).with_context(|| format!("cannot read {camera}"))?;

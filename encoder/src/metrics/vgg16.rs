@@ -10,13 +10,13 @@ use burn::tensor::activation::relu;
 use burn::tensor::module::{avg_pool2d, conv2d, max_pool2d};
 use burn::tensor::ops::{AvgPoolOptions, ConvOptions, MaxPoolOptions};
 use burn::tensor::{Device, Tensor, TensorData};
+use pwgs_core::random::SplitMix64;
 
 use super::depthwise::separable_filter;
 use super::sigma_map::BINOMIAL;
 use super::weights::{HostTensor, VGG16_CONVS, WeightFile, WeightsError, load};
 
-/// Conv layers per block; each block but the first starts with a pooling.
-/// Convolutions per block.
+/// Convolutions per block; each block but the first starts with a pooling.
 const BLOCKS: [usize; 5] = [2, 2, 3, 3, 3];
 
 /// VGG16's blocks, each ending in one of the feature arrays relu1_2 .. relu5_3.
@@ -67,6 +67,24 @@ impl Vgg16 {
                 Conv {
                     weight: Tensor::from_data(TensorData::new(w.values.clone(), [out, inp, 3, 3]), device),
                     bias: Tensor::from_data(TensorData::new(b.values.clone(), [out]), device),
+                }
+            })
+            .collect();
+        Self { convs }
+    }
+
+    /// VGG16's shapes with weights drawn at random (uniform, He-scaled, zero biases): the same
+    /// arithmetic as the trained network, for timing where the weights file is not at hand.
+    pub fn random(seed: u64, device: &Device) -> Self {
+        let mut rng = SplitMix64(seed);
+        let convs = VGG16_CONVS
+            .iter()
+            .map(|&(_, out, inp)| {
+                let bound = (6.0 / (inp * 9) as f32).sqrt();
+                let values: Vec<f32> = (0..out * inp * 9).map(|_| rng.uniform(-bound, bound)).collect();
+                Conv {
+                    weight: Tensor::from_data(TensorData::new(values, [out, inp, 3, 3]), device),
+                    bias: Tensor::zeros([out], device),
                 }
             })
             .collect();

@@ -68,6 +68,11 @@ impl VggWasserstein {
         Ok(Self { vgg: Some(Vgg16::load(dirs, device)?), depth: WdDepth::default() })
     }
 
+    /// WD with the features of `vgg`.
+    pub fn with_network(vgg: Vgg16) -> Self {
+        Self { vgg: Some(vgg), depth: WdDepth::default() }
+    }
+
     /// WD on pixels alone: the normalized image at the 3 scales, no VGG features. Much cheaper
     /// and needs no weights, but blind to texture beyond local color statistics.
     pub fn pixels_only() -> Self {

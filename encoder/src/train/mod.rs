@@ -5,6 +5,7 @@
 
 pub mod adam;
 pub mod backward;
+pub mod device;
 pub mod heap;
 pub mod params;
 pub mod splat_op;

@@ -1,0 +1,64 @@
+//! The device training runs on: Burn's CPU backend, or, with the `gpu` feature, a wgpu adapter
+//! through Burn's CubeCL backend. A software rasterizer (Mesa's lavapipe) is taken only when
+//! asked for, since it trains slower than the CPU backend; tests ask for it to run the GPU code
+//! paths without a GPU.
+
+use anyhow::Result;
+use burn::tensor::Device;
+
+/// A device and what it is, for logs and reports.
+#[derive(Debug, Clone)]
+pub struct TrainingDevice {
+    pub device: Device,
+    /// The adapter's name, its API and driver, or the CPU backend's name.
+    pub name: String,
+    pub gpu: bool,
+}
+
+impl TrainingDevice {
+    /// Burn's CPU backend.
+    pub fn cpu() -> Self {
+        Self { device: Device::flex(), name: "CPU (Burn flex backend)".to_string(), gpu: false }
+    }
+
+    /// The wgpu adapter wgpu ranks first for high performance; a software rasterizer only with
+    /// `allow_software`. Fails, without panicking, when there is none.
+    #[cfg(feature = "gpu")]
+    pub fn gpu(allow_software: bool) -> Result<Self> {
+        use burn::tensor::DeviceKind;
+        use burn::tensor::wgpu::wgpu::DeviceType;
+        let (device, setup) = Device::wgpu_options()
+            .device_kind(DeviceKind::DefaultDevice)
+            .init_with_setup()
+            .map_err(|e| anyhow::anyhow!("no wgpu adapter could be opened: {e}"))?;
+        let info = setup.adapter.get_info();
+        let name = format!("{} ({:?}, {} {})", info.name, info.backend, info.driver, info.driver_info);
+        anyhow::ensure!(
+            allow_software || info.device_type != DeviceType::Cpu,
+            "the only wgpu adapter is a software rasterizer: {name}"
+        );
+        Ok(Self { device, name, gpu: true })
+    }
+
+    /// Without the `gpu` feature there is no GPU backend to open.
+    #[cfg(not(feature = "gpu"))]
+    pub fn gpu(_allow_software: bool) -> Result<Self> {
+        anyhow::bail!("this build has no GPU backend (build with the `gpu` feature)")
+    }
+
+    /// Bytes the device's memory pools hold for tensors now, where the backend says it.
+    pub fn bytes_in_use(&self) -> Option<u64> {
+        self.device.memory_pool_usage().map(|u| u.bytes_in_use)
+    }
+
+    /// Bytes the device's memory pools have reserved now, where the backend says it: what the
+    /// run takes from the device, its peak when read after the largest step.
+    pub fn bytes_reserved(&self) -> Option<u64> {
+        self.device.memory_pool_usage().map(|u| u.bytes_reserved)
+    }
+
+    /// Waits for the device's queued work, so that a timing covers it.
+    pub fn sync(&self) -> Result<()> {
+        self.device.sync().map_err(|e| anyhow::anyhow!("the device failed: {e:?}"))
+    }
+}
