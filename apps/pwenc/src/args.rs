@@ -147,13 +147,13 @@ impl EncodeArgs {
     /// The job these arguments describe.
     pub(crate) fn job(&self) -> Result<EncodeJob> {
         let input = match (&self.from_ply, &self.scene) {
-            (Some(model), _) => Input::Model(self.model_import(model)),
+            (Some(model), _) => Input::Model(Box::new(self.model_import(model))),
             (None, Some(scene)) => Input::Scene {
                 path: scene.clone(),
                 load: self.load_options(),
                 base: match self.base {
                     Base::Anchor => BaseTraining::Anchor(Box::new(self.anchor_training()?)),
-                    Base::ThreeDgs => BaseTraining::Plain(self.plain_training()?),
+                    Base::ThreeDgs => BaseTraining::Plain(Box::new(self.plain_training()?)),
                 },
             },
             (None, None) => bail!("give a scene to train on, or --from MODEL"),

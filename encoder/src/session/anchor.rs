@@ -291,7 +291,7 @@ fn train(job: &AnchorTraining, trainer: &mut AnchorTrainer) -> Result<Trained> {
         last_step_gaussians = step.gaussians;
         last_bits = step.bits_per_value;
         let it = trainer.iteration;
-        if it % 100 == 0 || it == trainer.iterations {
+        if it.is_multiple_of(100) || it == trainer.iterations {
             let rate = f64::from(it) / start.elapsed().as_secs_f64().max(1e-9);
             let bits = step.bits_per_value.map(|b| format!("  {b:.3} bits/value")).unwrap_or_default();
             eprintln!(

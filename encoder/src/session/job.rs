@@ -32,14 +32,14 @@ pub enum Input {
     /// A scene's views (COLMAP, transforms.json or LLFF) to train a base on.
     Scene { path: PathBuf, load: LoadOptions, base: BaseTraining },
     /// A model trained elsewhere, compressed as it is.
-    Model(ModelImport),
+    Model(Box<ModelImport>),
 }
 
 /// Which base a scene trains, with its settings.
 #[derive(Debug, Clone)]
 pub enum BaseTraining {
     /// Plain 3D Gaussians with densification.
-    Plain(PlainTraining),
+    Plain(Box<PlainTraining>),
     /// Anchors whose MLPs give each view's Gaussians (SPEC.md section 12).
     Anchor(Box<AnchorTraining>),
 }
