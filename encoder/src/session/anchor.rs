@@ -22,7 +22,7 @@ use pwgs_render::raster::{RenderOptions, render};
 use pwgs_render::show::SceneRender;
 use serde::Serialize;
 
-use super::job::{Coded, EncodeReport, Finish, RunReport};
+use super::job::{Coded, EncodeReport, Finish, RunReport, SceneSummary};
 use super::{WrapperSummary, print_wrapper, quantize_wrapper, section_sizes};
 use crate::anchor::context::{ContextLookup, context_shape};
 use crate::anchor::growth::GrowthSchedule;
@@ -99,11 +99,8 @@ pub struct AnchorStreamSummary {
 
 #[derive(Serialize)]
 pub struct AnchorReport {
-    pub scene: String,
-    pub base: &'static str,
-    pub resolution: [u32; 2],
-    pub train_views: usize,
-    pub test_views: usize,
+    #[serde(flatten)]
+    pub scene: SceneSummary,
     pub anchors: usize,
     pub feature_dim: usize,
     pub offsets_per_anchor: usize,
@@ -156,7 +153,6 @@ pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish
     let stream_path = finish.outputs.stream.as_ref().map(|p| p.display().to_string());
     let target_bytes = finish.outputs.target_bytes;
     finish.finish(coded, || {
-        let first = &data.train[0].image;
         let stream = AnchorStreamSummary {
             path: stream_path,
             bytes: fitted.bytes.len(),
@@ -171,11 +167,7 @@ pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish
             wrapper: wrapper.as_ref().map(WrapperSummary::of),
         };
         Ok(RunReport::Anchor(Box::new(AnchorReport {
-            scene: scene.display().to_string(),
-            base: "anchor",
-            resolution: [first.width, first.height],
-            train_views: data.train.len(),
-            test_views: data.test.len(),
+            scene: SceneSummary::of(scene, data, "anchor"),
             anchors,
             feature_dim: job.feature_dim,
             offsets_per_anchor: job.offsets_per_anchor,

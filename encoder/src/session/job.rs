@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use pwgs_codec::scene::Scene;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::say;
-use pwgs_dataset::{LoadOptions, View, load_scene};
+use pwgs_dataset::{Dataset, LoadOptions, View, load_scene};
 use serde::Serialize;
 
 use super::anchor::{AnchorReport, AnchorTraining};
@@ -132,6 +132,32 @@ pub fn encode(job: &EncodeJob) -> Result<EncodeReport> {
             }
         }
         Input::Model(model) => super::import::run(model, finish),
+    }
+}
+
+/// The scene a base trained on, at the top of the base's report.
+#[derive(Serialize)]
+pub struct SceneSummary {
+    pub scene: String,
+    /// The loader that read it.
+    pub format: &'static str,
+    pub base: &'static str,
+    pub resolution: [u32; 2],
+    pub train_views: usize,
+    pub test_views: usize,
+}
+
+impl SceneSummary {
+    pub(super) fn of(path: &Path, data: &Dataset, base: &'static str) -> Self {
+        let first = &data.train[0].image;
+        Self {
+            scene: path.display().to_string(),
+            format: data.format,
+            base,
+            resolution: [first.width, first.height],
+            train_views: data.train.len(),
+            test_views: data.test.len(),
+        }
     }
 }
 

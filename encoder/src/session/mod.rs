@@ -32,7 +32,7 @@ use pwgs_dataset::Dataset;
 pub use anchor::{AnchorReport, AnchorStreamSummary, AnchorTraining};
 pub use compare::{CompareJob, CompareReport, compare_models};
 pub use import::{ImportReport, ModelImport, Orbit};
-pub use job::{BaseTraining, EncodeJob, EncodeReport, Input, Outputs, RunReport, encode};
+pub use job::{BaseTraining, EncodeJob, EncodeReport, Input, Outputs, RunReport, SceneSummary, encode};
 pub use plain::{PlainReport, PlainTraining};
 
 /// How a plain stream is coded.

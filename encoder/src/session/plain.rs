@@ -15,7 +15,7 @@ use pwgs_dataset::Dataset;
 use pwgs_render::raster::{RenderOptions, render};
 use serde::Serialize;
 
-use super::job::{Coded, EncodeReport, Finish, RunReport, export_ply};
+use super::job::{Coded, EncodeReport, Finish, RunReport, SceneSummary, export_ply};
 use super::{StreamOptions, StreamSummary, code_stream, print_wrapper, quantize_wrapper, read_ply};
 use crate::plain::compress::{QuantizerSettings, StreamContext};
 use crate::plain::init::initial_gaussians;
@@ -34,12 +34,8 @@ pub struct PlainTraining {
 
 #[derive(Serialize)]
 pub struct PlainReport {
-    pub scene: String,
-    pub format: &'static str,
-    pub base: &'static str,
-    pub resolution: [u32; 2],
-    pub train_views: usize,
-    pub test_views: usize,
+    #[serde(flatten)]
+    pub scene: SceneSummary,
     pub load_seconds: f64,
     pub training: TrainSummary,
     /// Size of the trained model as an uncompressed INRIA PLY.
@@ -125,7 +121,6 @@ pub(super) fn run(
             &trained
         }
     };
-    let first = &data.train[0].image;
     let coded = Coded {
         stream: compressed.as_ref().map(|c| &c.bytes[..]),
         shown,
@@ -134,12 +129,7 @@ pub(super) fn run(
     };
     finish.finish(coded, || {
         Ok(RunReport::Plain(Box::new(PlainReport {
-            scene: scene.display().to_string(),
-            format: data.format,
-            base: "3dgs",
-            resolution: [first.width, first.height],
-            train_views: data.train.len(),
-            test_views: data.test.len(),
+            scene: SceneSummary::of(scene, data, "3dgs"),
             load_seconds,
             training,
             ply_bytes: pwgs_core::ply::inria_ply_size(&gaussians),
