@@ -4,6 +4,7 @@
 //! reconstructs from that stream. The stages: `configure`, `train`, `quantize`, `fit`, then
 //! the pipeline's common finish.
 
+use std::borrow::Cow;
 use std::path::Path;
 use std::time::Instant;
 
@@ -23,7 +24,7 @@ use pwgs_render::show::SceneRender;
 use serde::Serialize;
 
 use super::job::{Coded, EncodeReport, Finish, RunReport, SceneSummary};
-use super::{WrapperSummary, print_wrapper, quantize_wrapper, section_sizes};
+use super::{WrapperSummary, print_wrapper, quantize_wrapper, section_sizes, size_limit};
 use crate::anchor::context::{ContextLookup, context_shape};
 use crate::anchor::growth::GrowthSchedule;
 use crate::anchor::init::{AnchorShape, initial_model};
@@ -134,7 +135,7 @@ pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish
     let trained = train(job, &mut trainer)?;
     let Quantized { content, header, steps, context_step_log2, wrapper } = quantize(job, data, &trainer, &grid)?;
     let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
-    let fitted = fit(content, (&header, wrapper.as_ref()), finish.outputs.size_limit(), &cameras)?;
+    let fitted = fit(content, (&header, wrapper.as_ref()), size_limit(finish.outputs.target_bytes), &cameras)?;
     if let Some(target) = finish.outputs.target_bytes {
         say!("target {target} bytes: {} least important anchors dropped to fit", fitted.dropped);
     }
@@ -147,7 +148,7 @@ pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish
         let checked = if test.is_empty() { &cameras[..cameras.len().min(8)] } else { &test[..] };
         let psnr = agreement_psnr(model, &export, checked, &shown.render_options());
         say!("export: SH degree 3 fitted, PSNR {psnr:.2} dB against the anchor renders of {} views", checked.len());
-        Ok(export)
+        Ok(Cow::Owned(export))
     };
     let coded = Coded { stream: Some(&fitted.bytes), shown, test: &data.test, export: Some(&export) };
     let stream_path = finish.outputs.stream.as_ref().map(|p| p.display().to_string());
@@ -379,7 +380,7 @@ fn quantize(job: &AnchorTraining, data: &Dataset, trainer: &AnchorTrainer, grid:
         Some(weights) => {
             // f's steps are chosen on renders of the anchors as a decoder lists them (in the
             // octree's order, which the depth sort's ties follow).
-            let (_, Decoded { scene: stored, .. }) = encode_and_decode(&header, &content, None)?;
+            let Decoded { scene: stored, .. } = decode_own(&stream::encode(&header, &content, None)?)?;
             let options = RenderOptions { background: job.background, ..Default::default() };
             let base_render = |camera: &Camera| render(&stored.gaussians_for(camera), camera, &options).data;
             let w = quantize_wrapper(&weights, &base_render, data, data.normalization.frame());
@@ -409,7 +410,7 @@ fn fit(
     cameras: &[Camera],
 ) -> Result<Fitted> {
     let (content, bytes, dropped) = fit_anchors(content, header, wrapper, limit, cameras)?;
-    let decoded = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
+    let decoded = decode_own(&bytes)?;
     Ok(Fitted { content, bytes, dropped, decoded })
 }
 
@@ -430,13 +431,7 @@ fn print_step_choice(candidates: &[StepCandidate], chosen: i8, context: Option<i
     }
 }
 
-/// The stream of `content` (and `wrapper`) and what every decoder reconstructs from it.
-fn encode_and_decode(
-    header: &Header,
-    content: &QuantizedAnchors,
-    wrapper: Option<&QuantizedSynthesis>,
-) -> Result<(Vec<u8>, Decoded)> {
-    let bytes = stream::encode(header, content, wrapper)?;
-    let decoded = stream::decode(&bytes).context("the encoder's own anchor stream does not decode")?;
-    Ok((bytes, decoded))
+/// What every decoder reconstructs from the encoder's own anchor stream `bytes`.
+fn decode_own(bytes: &[u8]) -> Result<Decoded> {
+    stream::decode(bytes).context("the encoder's own anchor stream does not decode")
 }

@@ -102,12 +102,10 @@ pub(super) fn run(job: &ModelImport, finish: Finish) -> Result<EncodeReport> {
     };
     let (compressed, stream) =
         code_stream(coded, (&context, &plan.settings), &stream_options, None, plan.weights.as_deref())?;
-    let ratio = ply_bytes as f64 / stream.bytes as f64;
-    say!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", ply.display(), stream.path, stream.bytes);
     let decoded_scene = &compressed.decoded.scene;
     let coded = Coded { stream: Some(&compressed.bytes), shown: decoded_scene, test: &[], export: None };
     finish.finish(coded, || {
-        let orbit_psnr = score_orbit(job, gaussians, decoded_scene, &context)?;
+        let orbit_psnr = score_orbit(job, gaussians, decoded_scene, (&context, &options))?;
         Ok(RunReport::Model(Box::new(import_report(job, ply_bytes, stream, orbit_psnr, plan))))
     })
 }
@@ -118,17 +116,16 @@ fn score_orbit(
     job: &ModelImport,
     input: Gaussians,
     decoded_scene: &Scene,
-    context: &StreamContext,
+    (context, options): (&StreamContext, &RenderOptions),
 ) -> Result<Vec<f64>> {
-    let options = RenderOptions { background: job.background, ..Default::default() };
     let mut orbit_psnr = Vec::new();
     if let Some(orbit) = &job.orbit {
         let cameras = orbit_cameras(context, Vec3::from(orbit.up), orbit.views, orbit.size)
             .with_context(|| views_problem("orbit", context))?;
         let (frame, background) = (decoded_scene.frame, decoded_scene.background);
         let input = Scene { base: Base::Plain(input), wrapper: None, frame, background };
-        let reference = renders(&input, &cameras, &options);
-        let decoded = renders(decoded_scene, &cameras, &options);
+        let reference = renders(&input, &cameras, options);
+        let decoded = renders(decoded_scene, &cameras, options);
         orbit_psnr = decoded.iter().zip(&reference).map(|(a, b)| psnr(a, b)).collect();
         if let Some(dir) = &job.orbit_renders {
             for (i, (input, decoded)) in reference.iter().zip(&decoded).enumerate() {
@@ -156,6 +153,7 @@ fn import_report(
         say!("orbit: mean PSNR {mean:.2} dB, lowest {min:.2} dB over {} views", orbit_psnr.len());
     }
     let ratio = ply_bytes as f64 / stream.bytes as f64;
+    say!("{} -> {}: {ply_bytes} -> {} bytes ({ratio:.1}x smaller)", job.path.display(), stream.path, stream.bytes);
     ImportReport {
         input: job.path.display().to_string(),
         ply_bytes,

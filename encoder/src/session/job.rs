@@ -3,6 +3,7 @@
 //! runs the input's stages, and hands what they coded to [`Finish`], which writes the stream
 //! and the export, evaluates what a decoder shows, and writes the report.
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -60,13 +61,6 @@ pub struct Outputs {
     pub eval: Option<EvalOptions>,
     /// The report, as JSON.
     pub report: Option<PathBuf>,
-}
-
-impl Outputs {
-    /// The stream's size limit in bytes (none: every Gaussian or anchor fits).
-    pub(super) fn size_limit(&self) -> usize {
-        self.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX))
-    }
 }
 
 /// What a run did: what its input's stages report, then the scores of what a decoder shows.
@@ -171,7 +165,7 @@ pub(super) struct Coded<'a> {
     pub test: &'a [View],
     /// Makes the Gaussians [`Outputs::export_ply`] gets (called only when it is set); an
     /// import has none.
-    pub export: Option<&'a dyn Fn() -> Result<Gaussians>>,
+    pub export: Option<&'a dyn Fn() -> Result<Cow<'a, Gaussians>>>,
 }
 
 /// The stages every pipeline ends with.
@@ -189,7 +183,7 @@ impl Finish<'_> {
             say!("wrote {} ({} bytes)", path.display(), bytes.len());
         }
         if let (Some(path), Some(export)) = (&self.outputs.export_ply, coded.export) {
-            export_ply(path, &export()?)?;
+            export_ply(path, &*export()?)?;
         }
         let run = describe()?;
         let (views, mean) = match &self.evaluation {

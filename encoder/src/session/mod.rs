@@ -109,7 +109,7 @@ fn code_stream(
     weights: Option<&[f32]>,
 ) -> Result<(Compressed, StreamSummary)> {
     let start = Instant::now();
-    let limit = options.target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX));
+    let limit = size_limit(options.target_bytes);
     let coding = Coding { settings, weights, prune_faint: options.prune_faint };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
@@ -154,6 +154,11 @@ fn code_stream(
         say!("target {target} bytes: {} least important Gaussians dropped to fit", summary.pruned_to_fit);
     }
     Ok((compressed, summary))
+}
+
+/// A stream's size limit in bytes for `--target-bytes` (none: every Gaussian or anchor fits).
+fn size_limit(target_bytes: Option<u64>) -> usize {
+    target_bytes.map_or(usize::MAX, |t| usize::try_from(t).unwrap_or(usize::MAX))
 }
 
 /// Each section's tag and its bytes in the stream, header and CRC included.

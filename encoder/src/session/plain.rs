@@ -1,6 +1,7 @@
 //! `pwenc SCENE --base 3dgs`: train plain Gaussians on a scene's views, then code the stream
 //! and finish (write, export, evaluate, report).
 
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -110,29 +111,30 @@ pub(super) fn run(
         }
         None => (None, None),
     };
+    let ply_bytes = pwgs_core::ply::inria_ply_size(&gaussians);
     // What is evaluated is what a decoder shows: the decoded stream when there is one, else the
-    // trained model with the wrapper's dequantized weights.
+    // trained model with the wrapper's dequantized weights (which then holds the Gaussians).
     let trained;
-    let shown = match &compressed {
-        Some(c) => &c.decoded.scene,
+    let (shown, model) = match &compressed {
+        Some(c) => (&c.decoded.scene, &gaussians),
         None => {
             let wrapper = wrapper.as_ref().map(QuantizedSynthesis::dequantize);
-            trained = Scene { base: Base::Plain(gaussians.clone()), wrapper, frame, background };
-            &trained
+            trained = Scene { base: Base::Plain(gaussians), wrapper, frame, background };
+            (&trained, trained.plain_gaussians().expect("a plain scene holds Gaussians"))
         }
     };
     let coded = Coded {
         stream: compressed.as_ref().map(|c| &c.bytes[..]),
         shown,
         test: &data.test,
-        export: Some(&|| Ok(gaussians.clone())),
+        export: Some(&|| Ok(Cow::Borrowed(model))),
     };
     finish.finish(coded, || {
         Ok(RunReport::Plain(Box::new(PlainReport {
             scene: SceneSummary::of(scene, data, "3dgs"),
             load_seconds,
             training,
-            ply_bytes: pwgs_core::ply::inria_ply_size(&gaussians),
+            ply_bytes,
             stream: summary,
         })))
     })
