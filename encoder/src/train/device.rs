@@ -22,22 +22,26 @@ impl TrainingDevice {
     }
 
     /// The wgpu adapter wgpu ranks first for high performance; a software rasterizer only with
-    /// `allow_software`. Fails, without panicking, when there is none.
+    /// `allow_software`. Fails, without panicking, when there is none. The adapter is opened
+    /// once per process (Burn registers its runtime once); later calls return it again.
     #[cfg(feature = "gpu")]
     pub fn gpu(allow_software: bool) -> Result<Self> {
         use burn::tensor::DeviceKind;
         use burn::tensor::wgpu::wgpu::DeviceType;
-        let (device, setup) = Device::wgpu_options()
-            .device_kind(DeviceKind::DefaultDevice)
-            .init_with_setup()
-            .map_err(|e| anyhow::anyhow!("no wgpu adapter could be opened: {e}"))?;
-        let info = setup.adapter.get_info();
-        let name = format!("{} ({:?}, {} {})", info.name, info.backend, info.driver, info.driver_info);
-        anyhow::ensure!(
-            allow_software || info.device_type != DeviceType::Cpu,
-            "the only wgpu adapter is a software rasterizer: {name}"
-        );
-        Ok(Self { device, name, gpu: true })
+        use std::sync::OnceLock;
+        static OPENED: OnceLock<std::result::Result<(Device, String, bool), String>> = OnceLock::new();
+        let opened = OPENED.get_or_init(|| {
+            let (device, setup) = Device::wgpu_options()
+                .device_kind(DeviceKind::DefaultDevice)
+                .init_with_setup()
+                .map_err(|e| format!("no wgpu adapter could be opened: {e}"))?;
+            let info = setup.adapter.get_info();
+            let name = format!("{} ({:?}, {} {})", info.name, info.backend, info.driver, info.driver_info);
+            Ok((device, name, info.device_type == DeviceType::Cpu))
+        });
+        let (device, name, software) = opened.as_ref().map_err(|e| anyhow::anyhow!("{e}"))?;
+        anyhow::ensure!(allow_software || !software, "the only wgpu adapter is a software rasterizer: {name}");
+        Ok(Self { device: device.clone(), name: name.clone(), gpu: true })
     }
 
     /// Without the `gpu` feature there is no GPU backend to open.

@@ -6,6 +6,8 @@
 pub mod adam;
 pub mod backward;
 pub mod device;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod heap;
 pub mod params;
 pub mod splat_op;

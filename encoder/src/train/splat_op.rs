@@ -1,10 +1,11 @@
 //! The rasterizer as a Burn operation with its own backward pass, so training code can write
 //! `render(&splats, camera)` on tensors and get gradients for every Gaussian parameter.
 //!
-//! Forward and backward are the CPU reference implementations (the decoder's forward, this
-//! crate's [`crate::train::backward`]); the op moves tensor data to the host and back. It is
-//! registered for Burn's `flex` CPU backend and for autodiff over it; GPU backends will get
-//! kernels of their own, checked against this one.
+//! On Burn's `flex` CPU backend, forward and backward are the CPU reference implementations
+//! (the decoder's forward, this crate's [`crate::train::backward`]), the tensors read on the
+//! host. With the `gpu` feature, on Burn's CubeCL backend (wgpu), they are the CubeCL kernels
+//! of [`crate::train::gpu`], checked against the reference by the tests; the tensors stay on
+//! the device.
 
 use std::sync::Arc;
 
@@ -14,6 +15,8 @@ use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients as AutodiffGradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
+#[cfg(feature = "gpu")]
+use burn::backend::tensor::IntTensor;
 use burn::backend::{Backend, Dispatch, ExtensionType, Flex, TensorMetadata, backend_extension};
 use burn::tensor::{Tensor, TensorData};
 use pwgs_core::camera::Camera;
@@ -23,7 +26,8 @@ use pwgs_render::raster::{RenderOptions, Rendered, Window, rasterize_window};
 use crate::train::backward::{Gradients, backward};
 
 /// The trainable parameters of a set of Gaussians, as backend tensors.
-#[derive(ExtensionType)]
+#[derive(ExtensionType, Debug, Clone)]
+#[extension_type(fusion: cfg(feature = "gpu"))]
 pub struct SplatTensors<B: Backend> {
     /// [N, 3]
     pub means: FloatTensor<B>,
@@ -61,10 +65,42 @@ impl SplatView {
     }
 }
 
-#[backend_extension(Flex, Autodiff)]
+#[backend_extension(Flex, Cube: cfg(feature = "gpu"), Autodiff)]
 pub trait SplatBackend: Backend {
     /// Renders [H, W, 3] colors.
     fn render_splats(#[extension_type] splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self>;
+}
+
+/// A render on the GPU with what its backward pass needs besides the inputs.
+#[cfg(feature = "gpu")]
+#[derive(ExtensionType, Debug, Clone)]
+#[extension_type(fusion: cfg(feature = "gpu"))]
+pub struct GpuRender<B: Backend> {
+    /// [H, W, 3]
+    pub image: FloatTensor<B>,
+    /// [H, W] final transmittance.
+    pub transmittance: FloatTensor<B>,
+    /// [H, W] u32: one past the last list position blended into each pixel.
+    pub last: IntTensor<B>,
+}
+
+/// The splat operation's two passes on Burn's CubeCL backend ([`crate::train::gpu`]), lazily
+/// through its operation fusion.
+#[cfg(feature = "gpu")]
+#[backend_extension(Cube: cfg(feature = "gpu"), Fusion: cfg(feature = "gpu"))]
+pub trait GpuSplatBackend: Backend {
+    #[fusion(meta = crate::train::gpu::render_meta)]
+    fn gpu_render(#[extension_type] splats: SplatTensors<Self>, view: SplatView) -> GpuRender<Self>;
+
+    /// The gradients of every input (the screen probe's: |dL/d(projected center)|).
+    #[fusion(meta = crate::train::gpu::backward_meta)]
+    fn gpu_render_backward(
+        #[extension_type] splats: SplatTensors<Self>,
+        view: SplatView,
+        transmittance: FloatTensor<Self>,
+        last: IntTensor<Self>,
+        v_image: FloatTensor<Self>,
+    ) -> SplatTensors<Self>;
 }
 
 /// Resolves a future that the CPU backend has already completed.
@@ -184,6 +220,74 @@ impl<C: CheckpointStrategy> SplatBackend for Autodiff<Flex, C> {
         match RenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
             OpsKind::Tracked(prep) => prep.finish(Arc::new(Saved { gaussians, view, rendered }), image),
             OpsKind::UnTracked(prep) => prep.finish(image),
+        }
+    }
+}
+
+#[cfg(feature = "gpu")]
+mod on_gpu {
+    use super::*;
+    use burn_cubecl::Cube;
+
+    impl SplatBackend for Cube {
+        fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
+            Self::gpu_render(splats, view).image
+        }
+    }
+
+    /// What the GPU forward pass keeps for the backward pass: the inputs (their tensors, not
+    /// copies) and the per-pixel arrays.
+    #[derive(Debug, Clone)]
+    struct Saved {
+        splats: SplatTensors<Cube>,
+        view: SplatView,
+        transmittance: FloatTensor<Cube>,
+        last: IntTensor<Cube>,
+    }
+
+    #[derive(Debug)]
+    struct GpuRenderBackward;
+
+    impl Backward<Cube, 6> for GpuRenderBackward {
+        type State = Saved;
+
+        fn backward(self, ops: Ops<Self::State, 6>, grads: &mut AutodiffGradients, _checkpointer: &mut Checkpointer) {
+            let Saved { splats, view, transmittance, last } = ops.state;
+            let v_image = grads.consume::<Cube>(&ops.node);
+            let g = Cube::gpu_render_backward(splats, view, transmittance, last, v_image);
+            let values = [g.means, g.log_scales, g.rotations, g.opacity_logits, g.sh, g.screen_probe];
+            for (parent, value) in ops.parents.into_iter().zip(values) {
+                if let Some(node) = parent {
+                    grads.register::<Cube>(node.id, value);
+                }
+            }
+        }
+    }
+
+    impl<C: CheckpointStrategy> SplatBackend for Autodiff<Cube, C> {
+        fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
+            let nodes = [
+                splats.means.node(),
+                splats.log_scales.node(),
+                splats.rotations.node(),
+                splats.opacity_logits.node(),
+                splats.sh.node(),
+                splats.screen_probe.node(),
+            ];
+            let inner = SplatTensors::<Cube> {
+                means: splats.means.primitive().clone(),
+                log_scales: splats.log_scales.primitive().clone(),
+                rotations: splats.rotations.primitive().clone(),
+                opacity_logits: splats.opacity_logits.primitive().clone(),
+                sh: splats.sh.primitive().clone(),
+                screen_probe: splats.screen_probe.primitive().clone(),
+            };
+            let out = Cube::gpu_render(inner.clone(), view);
+            match GpuRenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
+                OpsKind::Tracked(prep) => prep
+                    .finish(Saved { splats: inner, view, transmittance: out.transmittance, last: out.last }, out.image),
+                OpsKind::UnTracked(prep) => prep.finish(out.image),
+            }
         }
     }
 }

@@ -36,14 +36,14 @@ impl Default for ProjectionSettings {
 
 /// The EWA Jacobian clamps the view direction to 1.3x the field of view (gsplat's limit): far
 /// outside the frustum the linearization is meaningless and would produce huge ellipses.
-pub(super) const JACOBIAN_FOV_LIMIT: f64 = 1.3;
+pub const JACOBIAN_FOV_LIMIT: f64 = 1.3;
 
 /// Guard band: a center further outside the image than one image width (height) is culled;
 /// closer ones are kept so large splats just off-screen still cover the edge.
-pub(super) const GUARD_BAND: f64 = 1.0;
+pub const GUARD_BAND: f64 = 1.0;
 
 /// Quaternions shorter than this have no reliable direction (zero, or denormal after decay).
-pub(super) const MIN_QUATERNION_NORM_SQUARED: f64 = 1e-16;
+pub const MIN_QUATERNION_NORM_SQUARED: f64 = 1e-16;
 
 /// Everything the projection computes for one visible Gaussian; the backward pass reuses these
 /// values instead of recomputing them differently.
