@@ -1,45 +1,152 @@
-//! Training throughput per device: stage 2's steps without the splat operation (f and WD on
-//! VGG16 features, forward, backward and Adam; see `pwgs_encoder::wrapper::throughput`) at
-//! fern's 1008x756 with the default 128-pixel crops and with whole images, and whole images at
-//! 1600x1063, on Burn's CPU backend and, in a build with `--features gpu`, on the first wgpu
-//! adapter (a software rasterizer only with `PWGS_ALLOW_SOFTWARE_GPU=1`). Prints the device's
-//! name, the first step's time (kernel compilation and the target's features), steps per
-//! second after it and the device memory reserved. Run with `cargo bench -p pwgs-encoder
-//! --bench training_device [--features gpu] [-- --quick] [--gpu-steps N]` (`--gpu-steps`
-//! replaces every case's GPU step count: 1 checks the GPU path on a software rasterizer);
-//! timings depend on the machine: report them with it.
+//! Training throughput per device, on Burn's CPU backend and, in a build with `--features gpu`,
+//! on the first wgpu adapter (a software rasterizer only with `PWGS_ALLOW_SOFTWARE_GPU=1`):
+//!
+//! - stage 1: whole training steps of each base (render, loss, backward, Adam; densification
+//!   and anchor growth off, so the count stays put) on a generated scene of 500k points at
+//!   1008x756 and one of 1M points at 1600x1063, and on `--scene DIR` (for example fern with
+//!   `--downscale 4`, 1008x756) when given;
+//! - stage 2 without the splat operation (f and WD on VGG16 features, forward, backward and
+//!   Adam; see `pwgs_encoder::wrapper::throughput`) at 1008x756 with the default 128-pixel
+//!   crops and with whole images, and whole images at 1600x1063.
+//!
+//! Prints the device's name, the first step's time (kernel compilation, the target's
+//! features), steps per second after it and the device memory reserved. Run with `cargo bench
+//! -p pwgs-encoder --bench training_device [--features gpu] [-- --quick] [--gpu-steps N]
+//! [--scene DIR --downscale N]` (`--quick`: the smallest case of each stage; `--gpu-steps`
+//! replaces every case's GPU step count: 1 checks the GPU path on a software rasterizer).
+//! Timings depend on the machine: report them with it.
 
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Result;
+use pwgs_dataset::synthetic::{SyntheticOptions, generate};
+use pwgs_dataset::{Dataset, LoadOptions, load_scene};
+use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
+use pwgs_encoder::anchor::train::AnchorTrainer;
+use pwgs_encoder::plain::init::initial_gaussians;
+use pwgs_encoder::plain::train::{TrainConfig, Trainer};
 use pwgs_encoder::train::device::TrainingDevice;
 use pwgs_encoder::wrapper::throughput::stage_two_throughput;
 
-/// One measurement: view size, crop side, steps timed on the CPU and on a GPU.
-struct Case {
+/// A stage-2 measurement: view size, crop side, steps timed on the CPU and on a GPU.
+struct StageTwo {
     size: (u32, u32),
     crop: usize,
     cpu_steps: usize,
     gpu_steps: usize,
 }
 
-fn main() {
+/// A stage-1 measurement: a scene and the steps timed on the CPU and on a GPU.
+struct StageOne {
+    name: String,
+    data: Dataset,
+    cpu_steps: usize,
+    gpu_steps: usize,
+}
+
+/// First step's seconds and steps per second after it.
+fn time_steps(steps: usize, mut step: impl FnMut() -> Result<()>, device: &TrainingDevice) -> Result<(f64, f64)> {
+    let start = Instant::now();
+    step()?;
+    device.sync()?;
+    let first = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    for _ in 0..steps {
+        step()?;
+    }
+    device.sync()?;
+    Ok((first, steps as f64 / start.elapsed().as_secs_f64()))
+}
+
+fn mib(bytes: u64) -> String {
+    format!("{:.0} MiB", bytes as f64 / (1 << 20) as f64)
+}
+
+fn memory(device: &TrainingDevice) -> String {
+    device.bytes_reserved().map_or("not reported".to_string(), mib)
+}
+
+/// Plain 3DGS from the scene's points, densification off.
+fn plain_steps(data: &Dataset, steps: usize, device: &TrainingDevice) -> Result<(usize, f64, f64)> {
+    let initial = initial_gaussians(data, 0, usize::MAX)?;
+    let mut config = TrainConfig::for_iterations(steps as u32 + 1);
+    config.densify_until = 0;
+    let mut trainer = Trainer::new(config, data, &initial, device.device.clone())?;
+    let (first, rate) = time_steps(steps, || trainer.step().map(|_| ()), device)?;
+    Ok((initial.len(), first, rate))
+}
+
+/// The anchor base at its defaults (32 features, 10 offsets, voxel 0.01 of the scene scale),
+/// rate term off, growth off.
+fn anchor_steps(data: &Dataset, steps: usize, device: &TrainingDevice) -> Result<(usize, f64, f64)> {
+    let points = data.points.as_ref().ok_or_else(|| anyhow::anyhow!("the scene has no points"))?;
+    let shape = AnchorShape { feature_dim: 32, offsets_per_anchor: 10, voxel: 0.01 * data.normalization.scale };
+    let (initial, _) = initial_model(points, shape, 0)?;
+    let mut trainer = AnchorTrainer::new(&initial, data, steps as u32 + 1, [0.0; 3], 0, &device.device)?;
+    let (first, rate) = time_steps(steps, || trainer.step().map(|_| ()), device)?;
+    Ok((initial.len(), first, rate))
+}
+
+fn generated(dir: &Path, (width, height): (u32, u32), points: usize) -> Result<Dataset> {
+    generate(dir, &SyntheticOptions { width, height, views: 8, seed: 1, points })?;
+    Ok(load_scene(dir, &LoadOptions::default())?)
+}
+
+fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().collect();
+    let value = |flag: &str| args.iter().position(|a| a == flag).and_then(|i| args.get(i + 1));
     let quick = args.iter().any(|a| a == "--quick");
-    let gpu_steps: Option<usize> =
-        args.iter().position(|a| a == "--gpu-steps").and_then(|i| args.get(i + 1)).and_then(|n| n.parse().ok());
+    let gpu_steps: Option<usize> = value("--gpu-steps").and_then(|n| n.parse().ok());
     let allow_software = std::env::var("PWGS_ALLOW_SOFTWARE_GPU").is_ok_and(|v| v == "1");
     let mut devices = vec![TrainingDevice::cpu()];
     match TrainingDevice::gpu(allow_software) {
         Ok(gpu) => devices.push(gpu),
         Err(e) => println!("no GPU device: {e:#}"),
     }
-    let mut cases = vec![Case { size: (1008, 756), crop: 128, cpu_steps: 3, gpu_steps: 50 }];
-    if !quick {
-        cases.push(Case { size: (1008, 756), crop: 1008, cpu_steps: 1, gpu_steps: 20 });
-        cases.push(Case { size: (1600, 1063), crop: 1600, cpu_steps: 0, gpu_steps: 10 });
+
+    let tmp = tempfile::tempdir()?;
+    let mut stage_one = Vec::new();
+    let sizes: &[((u32, u32), usize)] =
+        if quick { &[((1008, 756), 500_000)] } else { &[((1008, 756), 500_000), ((1600, 1063), 1_000_000)] };
+    for (i, &(size, points)) in sizes.iter().enumerate() {
+        let data = generated(&tmp.path().join(i.to_string()), size, points)?;
+        let name = format!("generated {}x{}, {points} points", size.0, size.1);
+        stage_one.push(StageOne { name, data, cpu_steps: 1, gpu_steps: 30 });
     }
+    if let Some(scene) = value("--scene").map(PathBuf::from) {
+        let downscale = value("--downscale").and_then(|n| n.parse().ok()).unwrap_or(1);
+        let data = load_scene(&scene, &LoadOptions { downscale, ..Default::default() })?;
+        stage_one.push(StageOne { name: scene.display().to_string(), data, cpu_steps: 1, gpu_steps: 30 });
+    }
+    let mut stage_two = vec![StageTwo { size: (1008, 756), crop: 128, cpu_steps: 3, gpu_steps: 50 }];
+    if !quick {
+        stage_two.push(StageTwo { size: (1008, 756), crop: 1008, cpu_steps: 1, gpu_steps: 20 });
+        stage_two.push(StageTwo { size: (1600, 1063), crop: 1600, cpu_steps: 0, gpu_steps: 10 });
+    }
+
     for device in &devices {
         println!("device: {}", device.name);
-        for case in &cases {
-            let steps = if device.gpu { gpu_steps.unwrap_or(case.gpu_steps) } else { case.cpu_steps };
+        let steps_of = |cpu: usize, gpu: usize| if device.gpu { gpu_steps.unwrap_or(gpu) } else { cpu };
+        for case in &stage_one {
+            let steps = steps_of(case.cpu_steps, case.gpu_steps);
+            let image = &case.data.train[0].image;
+            for (base, run) in [("plain", plain_steps as fn(_, _, _) -> _), ("anchor", anchor_steps)] {
+                match run(&case.data, steps, device) {
+                    Ok((count, first, rate)) => println!(
+                        "  stage 1 {base} on {} ({}x{}, {count} {}): first step {first:.2} s, {rate:.2} it/s over {steps}, device memory reserved {}",
+                        case.name,
+                        image.width,
+                        image.height,
+                        if base == "plain" { "Gaussians" } else { "anchors" },
+                        memory(device)
+                    ),
+                    Err(e) => println!("  stage 1 {base} on {}: failed: {e:#}", case.name),
+                }
+            }
+        }
+        for case in &stage_two {
+            let steps = steps_of(case.cpu_steps, case.gpu_steps);
             if steps == 0 {
                 continue;
             }
@@ -54,11 +161,11 @@ fn main() {
                     "  stage 2 (f + WD, no splat) {w}x{h}, {what}: first step {:.2} s, {:.2} steps/s over {steps}, device memory reserved {}",
                     t.first_step_seconds,
                     t.steps_per_second,
-                    t.bytes_reserved
-                        .map_or("not reported".to_string(), |b| format!("{:.0} MiB", b as f64 / (1 << 20) as f64)),
+                    t.bytes_reserved.map_or("not reported".to_string(), mib)
                 ),
                 Err(e) => println!("  stage 2 {w}x{h}, {what}: failed: {e:#}"),
             }
         }
     }
+    Ok(())
 }

@@ -20,7 +20,9 @@ fn anchor_streams_are_cut_to_size_keeping_what_shows_most() {
     let shape = AnchorShape { feature_dim: 8, offsets_per_anchor: 4, voxel: 0.05 * data.normalization.scale };
     let (initial, grid) = initial_model(data.points.as_ref().unwrap(), shape, 0).unwrap();
     let steps = AnchorSteps::default();
-    let mut trainer = AnchorTrainer::new(&initial, &data, 150, [0.0; 3], 0).unwrap().with_quantization_noise(steps, 15);
+    let mut trainer = AnchorTrainer::new(&initial, &data, 150, [0.0; 3], 0, &burn::tensor::Device::flex())
+        .unwrap()
+        .with_quantization_noise(steps, 15);
     while trainer.iteration < trainer.iterations {
         trainer.step().unwrap();
     }

@@ -155,6 +155,7 @@ impl EncodeArgs {
                     Base::Anchor => BaseTraining::Anchor(Box::new(self.anchor_training()?)),
                     Base::ThreeDgs => BaseTraining::Plain(Box::new(self.plain_training()?)),
                 },
+                device: self.training.device,
             },
             (None, None) => bail!("give a scene to train on, or --from MODEL"),
         };

@@ -11,6 +11,7 @@ use pwgs_cli::values::parse_vector;
 use pwgs_encoder::anchor::train::StageTwoLambda;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric};
 use pwgs_encoder::plain::compress::{DEFAULT_QUALITY, MAX_QUALITY};
+use pwgs_encoder::train::device::DeviceChoice;
 
 use crate::values::{SpzAxesArg, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight};
 
@@ -196,6 +197,10 @@ pub(crate) struct TrainingArgs {
     /// Seed of every random choice in training.
     #[arg(long, default_value_t = 0, hide_short_help = true)]
     pub(crate) seed: u64,
+    /// Train on `gpu`, `cpu`, or `auto`: a GPU when there is one (builds with the `gpu`
+    /// feature), else the CPU.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub(crate) device: DeviceChoice,
 }
 
 /// Options of the evaluation on the test views after training.

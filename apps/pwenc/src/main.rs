@@ -60,6 +60,9 @@ enum Command {
         views: usize,
         #[arg(long, default_value_t = SyntheticOptions::default().seed)]
         seed: u64,
+        /// Points in the scene's point cloud (what both bases start from).
+        #[arg(long, default_value_t = SyntheticOptions::default().points)]
+        points: usize,
     },
     /// Download and convert the pretrained weights the perceptual metrics need (VGG16, LPIPS
     /// heads, DISTS) into the cache directory, checking every hash.
@@ -101,8 +104,8 @@ fn main() -> ExitCode {
 fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
     match cli.command {
         None => encode(cli.encode, matches),
-        Some(Command::GenerateScene { dir, width, height, views, seed }) => {
-            let options = SyntheticOptions { width, height, views, seed, ..Default::default() };
+        Some(Command::GenerateScene { dir, width, height, views, seed, points }) => {
+            let options = SyntheticOptions { width, height, views, seed, points };
             let start = Instant::now();
             let summary = generate(&dir, &options)?;
             say!(

@@ -46,7 +46,9 @@ fn anchors_learn_the_generated_scene() {
     };
     let before = psnr(&initial);
     let steps = AnchorSteps::default();
-    let mut trainer = AnchorTrainer::new(&initial, &data, 300, [0.0; 3], 0).unwrap().with_quantization_noise(steps, 30);
+    let mut trainer = AnchorTrainer::new(&initial, &data, 300, [0.0; 3], 0, &burn::tensor::Device::flex())
+        .unwrap()
+        .with_quantization_noise(steps, 30);
     let mut last = None;
     while trainer.iteration < trainer.iterations {
         last = Some(trainer.step().unwrap());
@@ -80,7 +82,7 @@ fn grown_anchors_train_and_code() {
     let coords = grid_coordinates(&initial.positions, &grid).unwrap();
     let steps = AnchorSteps::default();
     let schedule = GrowthSchedule { from: 50, until: 150, every: 50, max_anchors: 2 * initial.len() };
-    let trainer = AnchorTrainer::new(&initial, &data, 200, [0.0; 3], 0).unwrap();
+    let trainer = AnchorTrainer::new(&initial, &data, 200, [0.0; 3], 0, &burn::tensor::Device::flex()).unwrap();
     // With 2D planes, so that they train, code and decode too.
     let lookup = ContextLookup::new(context_shape(vec![6, 8]), &coords, grid.depth, &trainer.device());
     let mut trainer = trainer
@@ -129,7 +131,7 @@ fn network_steps_follow_the_objective() {
     let (data, initial, grid) = anchor_scene(tmp.path(), &options);
     let coords = grid_coordinates(&initial.positions, &grid).unwrap();
     let steps = AnchorSteps::default();
-    let trainer = AnchorTrainer::new(&initial, &data, 150, [0.0; 3], 0).unwrap();
+    let trainer = AnchorTrainer::new(&initial, &data, 150, [0.0; 3], 0, &burn::tensor::Device::flex()).unwrap();
     let lookup = ContextLookup::new(context_shape(vec![]), &coords, grid.depth, &trainer.device());
     let mut trainer = trainer.with_quantization_noise(steps, 15).with_rate(0.004, 45).with_context(lookup);
     while trainer.iteration < trainer.iterations {
@@ -192,7 +194,7 @@ fn learned_steps_follow_lambda() {
     let (data, initial, _) = anchor_scene(tmp.path(), &options);
     let base = AnchorSteps::default();
     let learned = |lambda: f32| {
-        let mut trainer = AnchorTrainer::new(&initial, &data, 120, [0.0; 3], 0)
+        let mut trainer = AnchorTrainer::new(&initial, &data, 120, [0.0; 3], 0, &burn::tensor::Device::flex())
             .unwrap()
             .with_quantization_noise(base, 0)
             .with_rate(lambda, 20)

@@ -32,6 +32,7 @@ use crate::anchor::network_steps::{StepCandidate, StepObjective, choose_context_
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize as quantize_anchors, quantize_context};
 use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::anchor::trim::fit_anchors;
+use crate::train::device::TrainingDevice;
 use crate::wrapper::stage::WrapperTraining;
 
 /// Training the anchor base.
@@ -130,8 +131,13 @@ pub struct AnchorReport {
 }
 
 /// Trains the anchor base on `data` (loaded from `scene`), codes its stream and finishes.
-pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish: Finish) -> Result<EncodeReport> {
-    let Configured { mut trainer, grid, anchors, voxel } = configure(job, data)?;
+pub(super) fn run(
+    job: &AnchorTraining,
+    (scene, data): (&Path, &Dataset),
+    device: &TrainingDevice,
+    finish: Finish,
+) -> Result<EncodeReport> {
+    let Configured { mut trainer, grid, anchors, voxel } = configure(job, data, device)?;
     let trained = train(job, &mut trainer)?;
     let Quantized { content, header, steps, context_step_log2, wrapper } = quantize(job, data, &trainer, &grid)?;
     let cameras: Vec<Camera> = data.train.iter().map(|v| v.camera).collect();
@@ -168,7 +174,7 @@ pub(super) fn run(job: &AnchorTraining, (scene, data): (&Path, &Dataset), finish
             wrapper: wrapper.as_ref().map(WrapperSummary::of),
         };
         Ok(RunReport::Anchor(Box::new(AnchorReport {
-            scene: SceneSummary::of(scene, data, "anchor"),
+            scene: SceneSummary::of(scene, data, "anchor", device),
             anchors,
             feature_dim: job.feature_dim,
             offsets_per_anchor: job.offsets_per_anchor,
@@ -202,7 +208,7 @@ struct Configured {
 
 /// Places the initial anchors on the scene's points and sets the trainer up with every term
 /// `job` asks for.
-fn configure(job: &AnchorTraining, data: &Dataset) -> Result<Configured> {
+fn configure(job: &AnchorTraining, data: &Dataset, device: &TrainingDevice) -> Result<Configured> {
     let points = data.points.as_ref().context("the anchor base starts from the scene's SfM points; it has none")?;
     let voxel = job.relative_voxel * data.normalization.scale;
     let shape = AnchorShape { feature_dim: job.feature_dim, offsets_per_anchor: job.offsets_per_anchor, voxel };
@@ -216,7 +222,7 @@ fn configure(job: &AnchorTraining, data: &Dataset) -> Result<Configured> {
     );
     let stage_two = job.wrapper.as_ref().map_or(0, |w| w.stage_two_steps(data.train.len()));
     let total = job.iterations.saturating_add(stage_two);
-    let mut trainer = AnchorTrainer::new(&initial, data, total, job.background, job.seed)?;
+    let mut trainer = AnchorTrainer::new(&initial, data, total, job.background, job.seed, &device.device)?;
     if let Some(w) = &job.wrapper {
         trainer = trainer.with_wrapper(w.clone())?.with_stage_two_lambda(job.stage_two_lambda);
         say!(

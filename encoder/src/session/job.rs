@@ -19,6 +19,7 @@ use super::import::{ImportReport, ModelImport};
 use super::plain::{PlainReport, PlainTraining};
 use super::{check_outputs, peak_resident_mib, write_report};
 use crate::metrics::evaluate::{EvalOptions, Evaluation, MeanScore, ViewScore};
+use crate::train::device::{DeviceChoice, TrainingDevice};
 
 /// Everything an encoder run does.
 #[derive(Debug, Clone)]
@@ -31,7 +32,7 @@ pub struct EncodeJob {
 #[derive(Debug, Clone)]
 pub enum Input {
     /// A scene's views (COLMAP, transforms.json or LLFF) to train a base on.
-    Scene { path: PathBuf, load: LoadOptions, base: BaseTraining },
+    Scene { path: PathBuf, load: LoadOptions, base: BaseTraining, device: DeviceChoice },
     /// A model trained elsewhere, compressed as it is.
     Model(Box<ModelImport>),
 }
@@ -106,7 +107,9 @@ pub fn encode(job: &EncodeJob) -> Result<EncodeReport> {
     )?;
     let finish = Finish { outputs: o, evaluation: o.eval.as_ref().map(Evaluation::prepare).transpose()? };
     match &job.input {
-        Input::Scene { path, load, base } => {
+        Input::Scene { path, load, base, device } => {
+            let device = device.resolve(|e| say!("no GPU to train on: {e:#}"))?;
+            say!("training on {}", device.name);
             let start = Instant::now();
             let data = load_scene(path, load).with_context(|| format!("cannot load the scene {}", path.display()))?;
             let load_seconds = start.elapsed().as_secs_f64();
@@ -121,8 +124,8 @@ pub fn encode(job: &EncodeJob) -> Result<EncodeReport> {
                 first.height
             );
             match base {
-                BaseTraining::Plain(plain) => super::plain::run(plain, (path, &data, load_seconds), finish),
-                BaseTraining::Anchor(anchor) => super::anchor::run(anchor, (path, &data), finish),
+                BaseTraining::Plain(plain) => super::plain::run(plain, (path, &data, load_seconds), &device, finish),
+                BaseTraining::Anchor(anchor) => super::anchor::run(anchor, (path, &data), &device, finish),
             }
         }
         Input::Model(model) => super::import::run(model, finish),
@@ -136,18 +139,21 @@ pub struct SceneSummary {
     /// The loader that read it.
     pub format: &'static str,
     pub base: &'static str,
+    /// What trained it: the GPU adapter, or the CPU backend.
+    pub device: String,
     pub resolution: [u32; 2],
     pub train_views: usize,
     pub test_views: usize,
 }
 
 impl SceneSummary {
-    pub(super) fn of(path: &Path, data: &Dataset, base: &'static str) -> Self {
+    pub(super) fn of(path: &Path, data: &Dataset, base: &'static str, device: &TrainingDevice) -> Self {
         let first = &data.train[0].image;
         Self {
             scene: path.display().to_string(),
             format: data.format,
             base,
+            device: device.name.clone(),
             resolution: [first.width, first.height],
             train_views: data.train.len(),
             test_views: data.test.len(),

@@ -6,7 +6,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Result;
-use burn::tensor::Device;
 use indicatif::{ProgressBar, ProgressStyle};
 use pwgs_codec::scene::{Base, Scene};
 use pwgs_codec::stream::wrap::QuantizedSynthesis;
@@ -21,6 +20,7 @@ use super::{StreamOptions, StreamSummary, code_stream, print_wrapper, quantize_w
 use crate::plain::compress::{QuantizerSettings, StreamContext};
 use crate::plain::init::initial_gaussians;
 use crate::plain::train::{TrainConfig, TrainSummary, Trainer, train};
+use crate::train::device::TrainingDevice;
 
 /// Training the plain base. `config.background` is also the scene's background.
 #[derive(Debug, Clone)]
@@ -49,6 +49,7 @@ pub struct PlainReport {
 pub(super) fn run(
     job: &PlainTraining,
     (scene, data, load_seconds): (&Path, &Dataset, f64),
+    device: &TrainingDevice,
     finish: Finish,
 ) -> Result<EncodeReport> {
     let cap = job.config.densify.max_gaussians;
@@ -73,7 +74,7 @@ pub(super) fn run(
     }
     let background = config.background;
     let iterations = config.iterations;
-    let mut trainer = Trainer::new(config, data, &initial, Device::flex())?;
+    let mut trainer = Trainer::new(config, data, &initial, device.device.clone())?;
     let result = train_with_progress(&mut trainer, iterations);
     let gaussians = trainer.gaussians();
     let training = match result {
@@ -131,7 +132,7 @@ pub(super) fn run(
     };
     finish.finish(coded, || {
         Ok(RunReport::Plain(Box::new(PlainReport {
-            scene: SceneSummary::of(scene, data, "3dgs"),
+            scene: SceneSummary::of(scene, data, "3dgs", device),
             load_seconds,
             training,
             ply_bytes,

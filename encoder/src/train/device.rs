@@ -6,6 +6,35 @@
 use anyhow::Result;
 use burn::tensor::Device;
 
+/// Where `pwenc` trains (`--device`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum DeviceChoice {
+    /// A GPU when the build has GPU support and a wgpu adapter that is not a software
+    /// rasterizer exists, else the CPU.
+    #[default]
+    Auto,
+    Cpu,
+    /// A GPU, or an error saying why there is none. `PWGS_ALLOW_SOFTWARE_GPU=1` accepts a
+    /// software rasterizer (Mesa's lavapipe), for tests.
+    Gpu,
+}
+
+impl DeviceChoice {
+    /// The device this choice names on this machine; `Auto` says why it fell back to the CPU
+    /// in `fell_back`.
+    pub fn resolve(self, fell_back: impl FnOnce(&anyhow::Error)) -> Result<TrainingDevice> {
+        let allow_software = std::env::var_os("PWGS_ALLOW_SOFTWARE_GPU").is_some_and(|v| v == "1");
+        match self {
+            Self::Cpu => Ok(TrainingDevice::cpu()),
+            Self::Gpu => TrainingDevice::gpu(allow_software),
+            Self::Auto => Ok(TrainingDevice::gpu(allow_software).unwrap_or_else(|e| {
+                fell_back(&e);
+                TrainingDevice::cpu()
+            })),
+        }
+    }
+}
+
 /// A device and what it is, for logs and reports.
 #[derive(Debug, Clone)]
 pub struct TrainingDevice {

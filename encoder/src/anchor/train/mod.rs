@@ -190,13 +190,15 @@ fn forward(x: Tensor<2>, t: &[Tensor<2>]) -> Tensor<2> {
 }
 
 impl AnchorTrainer {
-    /// Prepares `iterations` steps of training `initial` on the dataset's training views.
+    /// Prepares `iterations` steps of training `initial` on the dataset's training views, on
+    /// `device` (the wrapper of stage 2 trains there too).
     pub fn new(
         initial: &AnchorModel,
         data: &Dataset,
         iterations: u32,
         background: [f32; 3],
         seed: u64,
+        device: &Device,
     ) -> Result<Self> {
         if initial.is_empty() || !initial.is_consistent() {
             bail!("the initial anchor model is empty or inconsistent");
@@ -204,7 +206,7 @@ impl AnchorTrainer {
         if data.train.is_empty() {
             bail!("the dataset has no training views");
         }
-        let device = Device::flex();
+        let device = device.clone();
         let (n, f, k) = (initial.len(), initial.feature_dim, initial.offsets_per_anchor);
         let positions: Vec<f32> = initial.positions.iter().flatten().copied().collect();
         let scaling: Vec<f32> = initial.scaling.iter().flatten().copied().collect();

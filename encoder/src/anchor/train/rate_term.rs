@@ -161,7 +161,7 @@ mod tests {
 
     /// A trainer of `model` with the rate term on from the start.
     fn rated_trainer(model: &AnchorModel, data: &Dataset) -> AnchorTrainer {
-        AnchorTrainer::new(model, data, 10, [0.0; 3], 0)
+        AnchorTrainer::new(model, data, 10, [0.0; 3], 0, &burn::tensor::Device::flex())
             .unwrap()
             .with_quantization_noise(AnchorSteps::default(), 0)
             .with_rate(1.0, 0)

@@ -6,9 +6,9 @@
 //!
 //! The backward pass walks each pixel's list back to front from the last splat the forward
 //! pass blended, recovering transmittance by division, as the reference does. Each splat's
-//! gradient is summed over the tile's pixels in shared memory (a tree of additions, no atomics,
-//! no subgroup operations, which lavapipe lacks) and written to the splat's entry of the list,
-//! so the sums do not depend on scheduling.
+//! gradient is summed over the tile's pixels in shared memory (by rows, then over the rows; no
+//! atomics, no subgroup operations, which lavapipe lacks) and written to the splat's entry of
+//! the list, so the sums do not depend on scheduling.
 
 use burn_cubecl::cubecl;
 use burn_cubecl::cubecl::prelude::*;
@@ -27,6 +27,7 @@ const BOX_SLOTS: usize = BLOCK_SLOTS * BOX_WORDS as usize;
 /// Gradient values per list entry: center (2), conic (3), opacity, color (3).
 pub const ENTRY_GRAD: u32 = 9;
 const SUM_SLOTS: usize = BLOCK_SLOTS * ENTRY_GRAD as usize;
+const ROW_SUM_SLOTS: usize = (TILE_SIZE * ENTRY_GRAD) as usize;
 
 /// Positions of the blend limits (`project::blend_values`).
 const ALPHA_MIN: usize = 0;
@@ -212,6 +213,7 @@ pub fn blend_backward(
     let mut words = Shared::<[u32]>::new_slice(BOX_SLOTS);
     let mut slots = Shared::<[u32]>::new_slice(BLOCK_SLOTS);
     let mut sums = Shared::<[f32]>::new_slice(SUM_SLOTS);
+    let mut row_sums = Shared::<[f32]>::new_slice(ROW_SUM_SLOTS);
     let (lx, ly, inside) = tile_pixel(frame);
     let w = frame_at::WINDOW as usize;
     let (x, y) = (frame[w] + lx, frame[w + 1] + ly);
@@ -317,21 +319,27 @@ pub fn blend_backward(
             sums[at + 7 * stride_c] = g_g;
             sums[at + 8 * stride_c] = g_b;
             sync_cube();
-            let mut stride = (BLOCK / 2).runtime();
-            while stride > 0 {
-                if u < stride {
-                    for c in 0..ENTRY_GRAD {
-                        let at = (c * BLOCK + u) as usize;
-                        sums[at] += sums[at + stride as usize];
-                    }
+            // Two barriers a splat: each of ENTRY_GRAD x 16 units sums one row of the tile for
+            // one value, then ENTRY_GRAD units sum the 16 rows. The next splat's writes to
+            // `sums` come after every read of it (the second barrier), and its row sums after
+            // the reads of these (its first barrier).
+            if u < ENTRY_GRAD * TILE_SIZE {
+                let (c, row) = (u / TILE_SIZE, u % TILE_SIZE);
+                let first = (c * BLOCK + row * TILE_SIZE) as usize;
+                let mut total = 0.0f32.runtime();
+                for x in 0..TILE_SIZE {
+                    total += sums[first + x as usize];
                 }
-                sync_cube();
-                stride /= 2;
-            }
-            if u < ENTRY_GRAD {
-                entry_grads[(slots[j as usize] * ENTRY_GRAD + u) as usize] = sums[(u * BLOCK) as usize];
+                row_sums[u as usize] = total;
             }
             sync_cube();
+            if u < ENTRY_GRAD {
+                let mut total = 0.0f32.runtime();
+                for row in 0..TILE_SIZE {
+                    total += row_sums[(u * TILE_SIZE + row) as usize];
+                }
+                entry_grads[(slots[j as usize] * ENTRY_GRAD + u) as usize] = total;
+            }
         }
         top = low;
     }
