@@ -25,7 +25,6 @@ fn pwenc(args: &[&str]) -> serde_json::Value {
     let out = Command::new(env!("CARGO_BIN_EXE_pwenc"))
         .args(args)
         .env("PWGS_ALLOW_SOFTWARE_GPU", "1")
-        .env("CUBECL_AUTOTUNE_LEVEL", "minimal")
         .output()
         .expect("pwenc runs");
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -55,9 +54,9 @@ fn both_devices(base: &str) -> Option<(f64, f64)> {
             "--device",
             device,
             "--iters",
-            "30",
+            "12",
             "--wrapper-crops-per-view",
-            "3",
+            "2",
             "--wrapper-min-steps",
             "0",
             "--wd-features",

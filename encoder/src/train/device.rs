@@ -60,6 +60,7 @@ impl TrainingDevice {
         use std::sync::OnceLock;
         static OPENED: OnceLock<std::result::Result<(Device, String, bool), String>> = OnceLock::new();
         let opened = OPENED.get_or_init(|| {
+            minimal_autotune();
             let (device, setup) = Device::wgpu_options()
                 .device_kind(DeviceKind::DefaultDevice)
                 .init_with_setup()
@@ -93,5 +94,20 @@ impl TrainingDevice {
     /// Waits for the device's queued work, so that a timing covers it.
     pub fn sync(&self) -> Result<()> {
         self.device.sync().map_err(|e| anyhow::anyhow!("the device failed: {e:?}"))
+    }
+}
+
+/// CubeCL's autotuning at its `minimal` level unless `CUBECL_AUTOTUNE_LEVEL` says otherwise:
+/// at the default level, on an NVIDIA H200, tuning a whole-image step panicked (a candidate's
+/// grid over wgpu's 65,535 limit) and then hung, and on lavapipe a first step did not finish in
+/// ten minutes (docs/results/gpu-training.md). Takes effect only before CubeCL's first use.
+#[cfg(feature = "gpu")]
+fn minimal_autotune() {
+    use burn_cubecl::cubecl::config::autotune::AutotuneLevel;
+    use burn_cubecl::cubecl::config::{CubeClRuntimeConfig, RuntimeConfig};
+    if std::env::var_os("CUBECL_AUTOTUNE_LEVEL").is_none() {
+        let mut config = CubeClRuntimeConfig::default().override_from_env();
+        config.autotune.level = AutotuneLevel::Minimal;
+        CubeClRuntimeConfig::try_set(config);
     }
 }
