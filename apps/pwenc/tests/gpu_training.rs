@@ -82,14 +82,12 @@ fn both_devices(base: &str) -> Option<(f64, f64)> {
     Some((psnr(&cpu), psnr(&gpu)))
 }
 
+/// Both bases in one test: two lavapipe runs at once on a 2-core machine take 3.6 times as long
+/// as one after the other.
 #[test]
-fn plain_base_with_the_wrapper_trains_on_the_gpu_like_on_the_cpu() {
-    let Some((cpu, gpu)) = both_devices("3dgs") else { return };
-    assert!((cpu - gpu).abs() <= 0.5, "CPU {cpu:.3} dB, GPU {gpu:.3} dB");
-}
-
-#[test]
-fn anchor_base_with_the_wrapper_trains_on_the_gpu_like_on_the_cpu() {
-    let Some((cpu, gpu)) = both_devices("anchor") else { return };
-    assert!((cpu - gpu).abs() <= 0.5, "CPU {cpu:.3} dB, GPU {gpu:.3} dB");
+fn both_bases_with_the_wrapper_train_on_the_gpu_like_on_the_cpu() {
+    for base in ["3dgs", "anchor"] {
+        let Some((cpu, gpu)) = both_devices(base) else { return };
+        assert!((cpu - gpu).abs() <= 0.5, "{base}: CPU {cpu:.3} dB, GPU {gpu:.3} dB");
+    }
 }

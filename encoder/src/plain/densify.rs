@@ -3,12 +3,13 @@
 //! transparent or oversized ones are pruned. New Gaussians start with zero optimizer moments,
 //! as in 3DGS.
 
+use burn::tensor::{Device, Tensor};
 use glam::DVec3;
 use pwgs_core::gaussians::opacity_to_logit;
 use pwgs_core::random::SplitMix64;
 use pwgs_render::raster::project::{rotation_matrix, sigmoid};
 
-use crate::train::params::{PARAM_COUNT, Rows};
+use crate::train::params::{PARAM_COUNT, Rows, tensor_values};
 
 /// Thresholds of the density control (3DGS defaults).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,6 +64,33 @@ impl GradStats {
 
     pub fn mean(&self, i: usize) -> f32 {
         if self.views[i] == 0 { 0.0 } else { self.sum[i] / self.views[i] as f32 }
+    }
+}
+
+/// [`GradStats`] accumulated on the training device, as [`GradStats::add`] does on the host,
+/// so that a step reads nothing back; read at densification time.
+#[derive(Debug, Clone)]
+pub struct DeviceGradStats {
+    sum: Tensor<1>,
+    views: Tensor<1>,
+}
+
+impl DeviceGradStats {
+    pub fn new(n: usize, device: &Device) -> Self {
+        Self { sum: Tensor::zeros([n], device), views: Tensor::zeros([n], device) }
+    }
+
+    /// Adds one view's gradient norms; a Gaussian counts as seen when its norm is positive
+    /// (a NaN norm is not seen).
+    pub fn add(&mut self, norms: Tensor<1>) {
+        let seen = norms.clone().greater_elem(0.0);
+        self.sum = self.sum.clone() + norms.mask_fill(seen.clone().bool_not(), 0.0);
+        self.views = self.views.clone() + seen.float();
+    }
+
+    pub fn to_host(&self) -> GradStats {
+        let views = tensor_values(self.views.clone()).into_iter().map(|v| v as u32).collect();
+        GradStats { sum: tensor_values(self.sum.clone()), views }
     }
 }
 

@@ -19,11 +19,11 @@ use pwgs_core::random::SplitMix64;
 use pwgs_dataset::{Dataset, View};
 use pwgs_render::raster::RenderOptions;
 
-use super::densify::{DensifyConfig, DensifyReport, GradStats, HostState, densify, reset_opacity};
+use super::densify::{DensifyConfig, DensifyReport, DeviceGradStats, HostState, densify, reset_opacity};
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::train::adam::{LearningRates, Moments};
-use crate::train::params::{PARAM_NAMES, SplatParams, tensor_values};
+use crate::train::params::{SplatParams, tensor_values};
 use crate::train::splat_op::{SplatView, render};
 use crate::wrapper::stage::{WrapperStage, WrapperTraining};
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
@@ -145,7 +145,7 @@ pub struct Trainer {
     pub config: TrainConfig,
     pub params: SplatParams,
     moments: Moments,
-    stats: GradStats,
+    stats: DeviceGradStats,
     views: Vec<TrainView>,
     order: Vec<usize>,
     extent: f32,
@@ -190,7 +190,7 @@ impl Trainer {
             dataset.train.iter().map(|v| TrainView { camera: v.camera, target: upload_image(v, &device) }).collect();
         Ok(Self {
             moments: Moments::zeros_like(&params),
-            stats: GradStats::new(params.len()),
+            stats: DeviceGradStats::new(params.len(), &device),
             params,
             views,
             order: Vec::new(),
@@ -294,10 +294,7 @@ impl Trainer {
         // 3DGS thresholds the gradient with respect to normalized device coordinates, which
         // span the image with 2 units: d/d(ndc) = d/d(pixel) * size / 2.
         let ndc = 0.5 * camera.width.max(camera.height) as f32;
-        let screen: Vec<f32> = probe
-            .grad(&grads)
-            .map(|t| tensor_values(t).into_iter().map(|v| v * ndc).collect())
-            .unwrap_or_else(|| vec![0.0; n]);
+        let screen = probe.grad(&grads).map(|t| t * ndc);
 
         let lr = self.config.learning_rates(it, self.extent);
         let updated = self.moments.step(self.params.clone(), g, &lr, it + 1);
@@ -324,7 +321,9 @@ impl Trainer {
         }
         self.failed_steps = 0;
         self.params = updated;
-        self.stats.add(&screen);
+        if let Some(screen) = screen {
+            self.stats.add(screen);
+        }
         self.iteration += 1;
         let densified = self.control_density();
         Ok(StepReport { loss: loss_value, psnr, gaussians: self.params.len(), densified })
@@ -373,10 +372,11 @@ impl Trainer {
         let mut report = None;
         if densify_now {
             let prune_large = it > c.opacity_reset_every;
-            let (next, r) = densify(&state, &self.stats, &c.densify, self.extent, prune_large, &mut self.rng);
+            let stats = self.stats.to_host();
+            let (next, r) = densify(&state, &stats, &c.densify, self.extent, prune_large, &mut self.rng);
             state = next;
             report = Some(r);
-            self.stats = GradStats::new(state.params[0].len());
+            self.stats = DeviceGradStats::new(state.params[0].len(), &self.device);
         }
         if reset_now {
             reset_opacity(&mut state, 0.01);
@@ -400,7 +400,7 @@ fn non_finite_parameter(p: &SplatParams, loss: f32) -> Option<&'static str> {
     if !loss.is_finite() {
         return Some("the loss");
     }
-    p.to_host().iter().zip(PARAM_NAMES).find(|(rows, _)| !rows.data.iter().all(|v| v.is_finite())).map(|(_, name)| name)
+    p.first_non_finite()
 }
 
 /// Timing and outcome of a whole run.

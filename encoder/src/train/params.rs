@@ -128,6 +128,25 @@ impl SplatParams {
         self.means.dims()[0]
     }
 
+    /// The name of the first parameter tensor holding NaN or infinity, computed on the device:
+    /// `x - x` is 0 for a finite `x` and NaN otherwise, so each tensor's sum of it is NaN
+    /// exactly when the tensor has a non-finite value. Reads five numbers back.
+    pub fn first_non_finite(&self) -> Option<&'static str> {
+        let probe = |t: Tensor<1>| (t.clone() - t).sum();
+        let flat = |t: Tensor<2>| t.flatten::<1>(0, 1);
+        let sums = Tensor::cat(
+            vec![
+                probe(flat(self.means.clone())),
+                probe(flat(self.log_scales.clone())),
+                probe(flat(self.rotations.clone())),
+                probe(self.opacity_logits.clone()),
+                probe(self.sh.clone().flatten::<1>(0, 2)),
+            ],
+            0,
+        );
+        tensor_values(sums).iter().zip(PARAM_NAMES).find(|(v, _)| v.is_nan()).map(|(_, name)| name)
+    }
+
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -13,7 +13,7 @@ use burn::backend::autodiff::Autodiff;
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients as AutodiffGradients;
-use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::autodiff::ops::{Backward, NodeGuard, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
 #[cfg(feature = "gpu")]
 use burn::backend::tensor::IntTensor;
@@ -195,24 +195,34 @@ impl<B: Backend> Backward<B, 6> for RenderBackward {
     }
 }
 
+/// The autodiff nodes of the six inputs, in [`SplatTensors`]' field order, and their inner
+/// backend's tensors.
+fn tracked<B: Backend, C: CheckpointStrategy>(
+    splats: &SplatTensors<Autodiff<B, C>>,
+) -> ([NodeGuard; 6], SplatTensors<B>) {
+    let s = splats;
+    let nodes = [
+        s.means.node(),
+        s.log_scales.node(),
+        s.rotations.node(),
+        s.opacity_logits.node(),
+        s.sh.node(),
+        s.screen_probe.node(),
+    ];
+    let inner = SplatTensors {
+        means: s.means.primitive().clone(),
+        log_scales: s.log_scales.primitive().clone(),
+        rotations: s.rotations.primitive().clone(),
+        opacity_logits: s.opacity_logits.primitive().clone(),
+        sh: s.sh.primitive().clone(),
+        screen_probe: s.screen_probe.primitive().clone(),
+    };
+    (nodes, inner)
+}
+
 impl<C: CheckpointStrategy> SplatBackend for Autodiff<Flex, C> {
     fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
-        let nodes = [
-            splats.means.node(),
-            splats.log_scales.node(),
-            splats.rotations.node(),
-            splats.opacity_logits.node(),
-            splats.sh.node(),
-            splats.screen_probe.node(),
-        ];
-        let inner = SplatTensors::<Flex> {
-            means: splats.means.primitive().clone(),
-            log_scales: splats.log_scales.primitive().clone(),
-            rotations: splats.rotations.primitive().clone(),
-            opacity_logits: splats.opacity_logits.primitive().clone(),
-            sh: splats.sh.primitive().clone(),
-            screen_probe: splats.screen_probe.primitive().clone(),
-        };
+        let (nodes, inner) = tracked(&splats);
         let device = inner.means.device();
         let gaussians = gaussians_from(&inner);
         let rendered = view.rasterize(&gaussians);
@@ -266,22 +276,7 @@ mod on_gpu {
 
     impl<C: CheckpointStrategy> SplatBackend for Autodiff<Cube, C> {
         fn render_splats(splats: SplatTensors<Self>, view: SplatView) -> FloatTensor<Self> {
-            let nodes = [
-                splats.means.node(),
-                splats.log_scales.node(),
-                splats.rotations.node(),
-                splats.opacity_logits.node(),
-                splats.sh.node(),
-                splats.screen_probe.node(),
-            ];
-            let inner = SplatTensors::<Cube> {
-                means: splats.means.primitive().clone(),
-                log_scales: splats.log_scales.primitive().clone(),
-                rotations: splats.rotations.primitive().clone(),
-                opacity_logits: splats.opacity_logits.primitive().clone(),
-                sh: splats.sh.primitive().clone(),
-                screen_probe: splats.screen_probe.primitive().clone(),
-            };
+            let (nodes, inner) = tracked(&splats);
             let out = Cube::gpu_render(inner.clone(), view);
             match GpuRenderBackward.prepare::<C>(nodes).compute_bound().stateful() {
                 OpsKind::Tracked(prep) => prep

@@ -205,11 +205,11 @@ pub fn finite(x: f32) -> bool {
     !(x.is_nan() || x.is_inf())
 }
 
-/// The quaternion of Gaussian `i` divided by its largest component, and that component's
-/// magnitude (0 for a zero quaternion); the sum of squares of the result is in [1, 4], so its
-/// norm neither overflows nor underflows.
+/// The unit quaternion of Gaussian `i` and the raw quaternion's norm. The norm is taken of the
+/// quaternion divided by its largest component (a sum of squares in [1, 4]), so that it
+/// neither overflows nor underflows; a zero quaternion has norm 0.
 #[cube]
-pub fn scaled_quaternion(rotations: &Tensor<f32>, i: u32) -> (f32, f32, f32, f32, f32) {
+pub fn unit_quaternion(rotations: &Tensor<f32>, i: u32) -> (f32, f32, f32, f32, f32) {
     let base = (i * 4) as usize;
     let (w, x, y, z) = (rotations[base], rotations[base + 1], rotations[base + 2], rotations[base + 3]);
     let m = w.abs().max(x.abs()).max(y.abs().max(z.abs()));
@@ -217,7 +217,21 @@ pub fn scaled_quaternion(rotations: &Tensor<f32>, i: u32) -> (f32, f32, f32, f32
     if m > 0.0 {
         inv = 1.0 / m;
     }
-    (w * inv, x * inv, y * inv, z * inv, m)
+    let (w, x, y, z) = (w * inv, x * inv, y * inv, z * inv);
+    let scaled = (w * w + x * x + y * y + z * z).sqrt();
+    let to_unit = 1.0 / scaled;
+    (w * to_unit, x * to_unit, y * to_unit, z * to_unit, m * scaled)
+}
+
+/// The view direction's tangents clamped to the Jacobian's limit (1.3 times the field of
+/// view).
+#[cube]
+pub fn clamped_tangents(view: &Tensor<f32>, tan_x: f32, tan_y: f32) -> (f32, f32) {
+    let e = view_at::EDGES as usize;
+    let s = view_at::SLACK as usize;
+    let ctx = tan_x.clamp(-view[e] - view[s], view[e + 1] + view[s]);
+    let cty = tan_y.clamp(-view[e + 2] - view[s + 1], view[e + 3] + view[s + 1]);
+    (ctx, cty)
 }
 
 /// Camera-space mean and the unnormalized viewing direction (mean minus camera center).
@@ -278,13 +292,10 @@ pub fn project_kernel(
     if !(opacity >= view[view_at::ALPHA_MIN as usize]) {
         terminate!();
     }
-    let (qw, qx, qy, qz, qm) = scaled_quaternion(rotations, i);
-    let n2 = qw * qw + qx * qx + qy * qy + qz * qz;
-    if !(qm * qm * n2 >= MIN_NORM_SQUARED) {
+    let (qw, qx, qy, qz, norm) = unit_quaternion(rotations, i);
+    if !(norm * norm >= MIN_NORM_SQUARED) {
         terminate!();
     }
-    let inv_norm = 1.0 / n2.sqrt();
-    let (qw, qx, qy, qz) = (qw * inv_norm, qx * inv_norm, qy * inv_norm, qz * inv_norm);
 
     let (cam_x, cam_y, z, dir_x, dir_y, dir_z) = camera_space(means, i, view);
     if !(z >= view[view_at::NEAR as usize]) {
@@ -308,10 +319,7 @@ pub fn project_kernel(
     if !(finite(sx) && finite(sy) && finite(sz)) {
         terminate!();
     }
-    let slack_x = view[view_at::SLACK as usize];
-    let slack_y = view[view_at::SLACK as usize + 1];
-    let ctx = tan_x.clamp(-left - slack_x, right + slack_x);
-    let cty = tan_y.clamp(-top - slack_y, bottom + slack_y);
+    let (ctx, cty) = clamped_tangents(view, tan_x, tan_y);
     let fx = view[view_at::FOCAL as usize];
     let fy = view[view_at::FOCAL as usize + 1];
     let (fx_z, fy_z) = (fx * inv_z, fy * inv_z);

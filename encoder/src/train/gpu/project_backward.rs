@@ -9,7 +9,8 @@ use burn_cubecl::cubecl::prelude::*;
 
 use super::blend::ENTRY_GRAD;
 use super::project::{
-    camera_space, covariance_2d, frame_at, scaled_quaternion, scaled_rotation, sh_basis, sigmoid, view_at,
+    camera_space, clamped_tangents, covariance_2d, frame_at, scaled_rotation, sh_basis, sigmoid, unit_quaternion,
+    view_at,
 };
 use super::sort::element_index;
 use pwgs_render::raster::sh::{C1, C2, C3};
@@ -178,18 +179,11 @@ pub fn project_backward(
 
     // The forward values, as the projection kernel computes them.
     let opacity = sigmoid(logits[g as usize]);
-    let (qw, qx, qy, qz, qm) = scaled_quaternion(rotations, g);
-    let inv_norm = 1.0 / (qw * qw + qx * qx + qy * qy + qz * qz).sqrt();
-    let (qw, qx, qy, qz) = (qw * inv_norm, qx * inv_norm, qy * inv_norm, qz * inv_norm);
+    let (qw, qx, qy, qz, norm) = unit_quaternion(rotations, g);
     let (x, y, z, dir_x, dir_y, dir_z) = camera_space(means, g, view);
     let inv_z = 1.0 / z;
     let (tan_x, tan_y) = (x * inv_z, y * inv_z);
-    let e = view_at::EDGES as usize;
-    let (left, right, top, bottom) = (view[e], view[e + 1], view[e + 2], view[e + 3]);
-    let slack_x = view[view_at::SLACK as usize];
-    let slack_y = view[view_at::SLACK as usize + 1];
-    let ctx = tan_x.clamp(-left - slack_x, right + slack_x);
-    let cty = tan_y.clamp(-top - slack_y, bottom + slack_y);
+    let (ctx, cty) = clamped_tangents(view, tan_x, tan_y);
     let fx = view[view_at::FOCAL as usize];
     let fy = view[view_at::FOCAL as usize + 1];
     let sb = (g * 3) as usize;
@@ -309,7 +303,6 @@ pub fn project_backward(
             + y_ * v_r[5]
             + x_ * v_r[6]
             + y_ * v_r[7]);
-    let norm = qm / inv_norm;
     let dot = w_ * vq_w + x_ * vq_x + y_ * vq_y + z_ * vq_z;
     grad_rotations[(g * 4) as usize] = (vq_w - w_ * dot) / norm;
     grad_rotations[(g * 4 + 1) as usize] = (vq_x - x_ * dot) / norm;
