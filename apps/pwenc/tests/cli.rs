@@ -29,6 +29,7 @@ fn trains_evaluates_and_writes_outputs() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir("report.json")).unwrap()).unwrap();
     assert_eq!(report["training"]["iterations"], 30);
+    assert!(!report["device"].as_str().unwrap().is_empty(), "the report names what trained");
     assert_eq!(report["views"].as_array().unwrap().len(), 2);
     assert!(report["mean"]["psnr"].as_f64().unwrap() > 8.0);
     if cfg!(target_os = "linux") {
@@ -53,6 +54,26 @@ fn trains_evaluates_and_writes_outputs() {
     assert!(stdout.contains("initialization: 40 of the "), "{stdout}");
     let capped = pwgs_core::ply::read_gaussians(std::path::Path::new(&dir("capped.ply"))).unwrap();
     assert!(capped.gaussians.len() <= 40, "{} Gaussians", capped.gaussians.len());
+}
+
+/// A build without the `gpu` feature trains on the CPU: `--device auto` (the default) says so in
+/// the report, and `--device gpu` is refused before any work, naming the feature.
+#[cfg(not(feature = "gpu"))]
+#[test]
+fn a_build_without_the_gpu_feature_trains_on_the_cpu() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let out = pwenc(&["generate-scene", &dir("scene"), "--width", "32", "--height", "24", "--views", "4"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let common = ["--base", "3dgs", "--no-wrapper", "--iters", "2"];
+    let out = pwenc(&[&[dir("scene").as_str(), "--report", &dir("r.json")][..], &common[..]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir("r.json")).unwrap()).unwrap();
+    assert_eq!(report["device"], "CPU (Burn flex backend)");
+    let out = pwenc(&[&[dir("scene").as_str(), "--device", "gpu", "-o", &dir("s.pwb")][..], &common[..]].concat());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("`gpu` feature"), "{stderr}");
+    assert!(!std::path::Path::new(&dir("s.pwb")).exists());
 }
 
 #[test]
