@@ -3,8 +3,8 @@
 //! backward passes), its values checked against it by the tests.
 //!
 //! Nothing is copied to the host per render but one number (how many tile-list entries there
-//! are, to size their buffers) and nothing from the host but the camera (40 values): images,
-//! Gaussians and gradients stay on the device.
+//! are, to size their buffers) and nothing from the host but the camera and settings (46
+//! values): images, Gaussians and gradients stay on the device.
 
 pub mod bins;
 pub mod blend;
