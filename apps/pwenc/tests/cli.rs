@@ -339,5 +339,16 @@ fn help_gives_the_main_options_by_group_and_help_all_every_option() {
         assert!(!short.contains(option) && all.contains(option), "{option}");
     }
     assert!(all.contains("Niantic") && !short.contains("Niantic"), "details only in --help-all");
+    // Every subcommand has its own help.
+    for (command, option) in [
+        ("generate-scene", "--points"),
+        ("fetch-weights", "--dists-wheel"),
+        ("inspect", "--downscale"),
+        ("compare", "--orbit"),
+    ] {
+        for flag in ["--help", "-h"] {
+            assert!(text(&[command, flag]).contains(option), "{command} {flag}");
+        }
+    }
     assert!(all.lines().count() > 3 * short.lines().count() / 2);
 }
