@@ -153,7 +153,7 @@ pub fn bin(inputs: &Inputs, view: &SplatView) -> Binned {
     let window = view.window;
     let tiles = window.tile_counts();
     let view_t = upload_f32(like, view_values(view));
-    let frame = upload_u32(like, frame_values(window, inputs.sh_coeffs, inputs.sh_coeffs));
+    let frame = upload_u32(like, frame_values(window, inputs.sh_coeffs));
     let settings = upload_f32(like, blend_values(&view.options));
 
     let splats = empty_f32(like, &[(n * SPLAT_FLOATS).max(1) as usize]);

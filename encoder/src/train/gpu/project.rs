@@ -100,15 +100,14 @@ pub mod frame_at {
     pub const WINDOW: u32 = 0;
     pub const TILES_X: u32 = 4;
     pub const TILES_Y: u32 = 5;
-    /// SH coefficients per channel held by the SH tensor, and those rendered.
-    pub const SH_STRIDE: u32 = 6;
-    pub const SH_USED: u32 = 7;
-    pub const LEN: usize = 8;
+    /// SH coefficients per channel of the SH tensor (all of them rendered).
+    pub const SH_COEFFS: u32 = 6;
+    pub const LEN: usize = 7;
 }
 
-pub fn frame_values(window: Window, sh_stride: u32, sh_used: u32) -> Vec<u32> {
+pub fn frame_values(window: Window, sh_coeffs: u32) -> Vec<u32> {
     let (tiles_x, tiles_y) = window.tile_counts();
-    vec![window.x0, window.y0, window.width, window.height, tiles_x, tiles_y, sh_stride, sh_used]
+    vec![window.x0, window.y0, window.width, window.height, tiles_x, tiles_y, sh_coeffs]
 }
 
 /// Smallest alpha, largest alpha, transmittance stop and background, as the blend kernels
@@ -118,10 +117,10 @@ pub fn blend_values(options: &RenderOptions) -> Vec<f32> {
     vec![options.projection.alpha_min as f32, options.alpha_max, options.transmittance_min, r, g, b]
 }
 
-const SH_C0: f32 = C0 as f32;
-const SH_C1: f32 = C1 as f32;
-const SH_C2: [f32; 5] = [C2[0] as f32, C2[1] as f32, C2[2] as f32, C2[3] as f32, C2[4] as f32];
-const SH_C3: [f32; 7] =
+pub(super) const SH_C0: f32 = C0 as f32;
+pub(super) const SH_C1: f32 = C1 as f32;
+pub(super) const SH_C2: [f32; 5] = [C2[0] as f32, C2[1] as f32, C2[2] as f32, C2[3] as f32, C2[4] as f32];
+pub(super) const SH_C3: [f32; 7] =
     [C3[0] as f32, C3[1] as f32, C3[2] as f32, C3[3] as f32, C3[4] as f32, C3[5] as f32, C3[6] as f32];
 const MIN_NORM_SQUARED: f32 = MIN_QUATERNION_NORM_SQUARED as f32;
 
@@ -184,8 +183,7 @@ pub fn finite_parameters(
     logits: &Tensor<f32>,
     sh: &Tensor<f32>,
     i: u32,
-    sh_stride: u32,
-    sh_used: u32,
+    sh_coeffs: u32,
 ) -> bool {
     let mut ok = finite(logits[i as usize]);
     for k in 0..3u32 {
@@ -194,8 +192,8 @@ pub fn finite_parameters(
     for k in 0..4u32 {
         ok = ok && finite(rotations[(i * 4 + k) as usize]);
     }
-    for k in 0..sh_used * 3 {
-        ok = ok && finite(sh[(i * sh_stride * 3 + k) as usize]);
+    for k in 0..sh_coeffs * 3 {
+        ok = ok && finite(sh[(i * sh_coeffs * 3 + k) as usize]);
     }
     ok
 }
@@ -252,10 +250,10 @@ pub fn camera_space(means: &Tensor<f32>, i: u32, view: &Tensor<f32>) -> (f32, f3
 
 /// Unclamped color channel `c` of Gaussian `i` seen along unit direction (x, y, z).
 #[cube]
-pub fn sh_color(sh: &Tensor<f32>, i: u32, c: u32, sh_stride: u32, sh_used: u32, x: f32, y: f32, z: f32) -> f32 {
+pub fn sh_color(sh: &Tensor<f32>, i: u32, c: u32, sh_coeffs: u32, x: f32, y: f32, z: f32) -> f32 {
     let mut color = 0.5f32.runtime();
-    for k in 0..sh_used {
-        color += sh_basis(k, x, y, z) * sh[((i * sh_stride + k) * 3 + c) as usize];
+    for k in 0..sh_coeffs {
+        color += sh_basis(k, x, y, z) * sh[((i * sh_coeffs + k) * 3 + c) as usize];
     }
     color
 }
@@ -283,9 +281,8 @@ pub fn project_kernel(
     }
     tile_counts[i as usize] = 0;
     depth_keys[i as usize] = CULLED_KEY;
-    let sh_stride = frame[frame_at::SH_STRIDE as usize];
-    let sh_used = frame[frame_at::SH_USED as usize];
-    if !finite_parameters(means, log_scales, rotations, logits, sh, i, sh_stride, sh_used) {
+    let sh_coeffs = frame[frame_at::SH_COEFFS as usize];
+    if !finite_parameters(means, log_scales, rotations, logits, sh, i, sh_coeffs) {
         terminate!();
     }
     let opacity = sigmoid(logits[i as usize]);
@@ -376,7 +373,7 @@ pub fn project_kernel(
     splats[o + CHOLESKY as usize + 2] = (1.0 / cov_c).sqrt();
     splats[o + OPACITY as usize] = opacity;
     for c in 0..3u32 {
-        splats[o + (COLOR + c) as usize] = sh_color(sh, i, c, sh_stride, sh_used, ux, uy, uz).max(0.0);
+        splats[o + (COLOR + c) as usize] = sh_color(sh, i, c, sh_coeffs, ux, uy, uz).max(0.0);
     }
     splats[o + DEPTH as usize] = z;
     let bo = (i * BOX_WORDS) as usize;

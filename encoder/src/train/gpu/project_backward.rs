@@ -9,25 +9,10 @@ use burn_cubecl::cubecl::prelude::*;
 
 use super::blend::ENTRY_GRAD;
 use super::project::{
-    camera_space, clamped_tangents, covariance_2d, frame_at, scaled_rotation, sh_basis, sigmoid, unit_quaternion,
-    view_at,
+    SH_C1, SH_C2, SH_C3, camera_space, clamped_tangents, covariance_2d, frame_at, scaled_rotation, sh_basis, sh_color,
+    sigmoid, unit_quaternion, view_at,
 };
 use super::sort::element_index;
-use pwgs_render::raster::sh::{C1, C2, C3};
-
-const SH_C1: f32 = C1 as f32;
-const C2_0: f32 = C2[0] as f32;
-const C2_1: f32 = C2[1] as f32;
-const C2_2: f32 = C2[2] as f32;
-const C2_3: f32 = C2[3] as f32;
-const C2_4: f32 = C2[4] as f32;
-const C3_0: f32 = C3[0] as f32;
-const C3_1: f32 = C3[1] as f32;
-const C3_2: f32 = C3[2] as f32;
-const C3_3: f32 = C3[3] as f32;
-const C3_4: f32 = C3[4] as f32;
-const C3_5: f32 = C3[5] as f32;
-const C3_6: f32 = C3[6] as f32;
 
 /// d basis_k / d(x, y, z) at (x, y, z), the components taken as independent (the reference's
 /// `basis_gradient`).
@@ -44,47 +29,47 @@ fn sh_basis_gradient(k: u32, x: f32, y: f32, z: f32) -> (f32, f32, f32) {
     } else if k == 3 {
         gx = -SH_C1 + 0.0 * x;
     } else if k == 4 {
-        gx = C2_0 * y;
-        gy = C2_0 * x;
+        gx = SH_C2[0] * y;
+        gy = SH_C2[0] * x;
     } else if k == 5 {
-        gy = C2_1 * z;
-        gz = C2_1 * y;
+        gy = SH_C2[1] * z;
+        gz = SH_C2[1] * y;
     } else if k == 6 {
-        gx = 0.0 - 2.0 * C2_2 * x;
-        gy = 0.0 - 2.0 * C2_2 * y;
-        gz = 4.0 * C2_2 * z;
+        gx = 0.0 - 2.0 * SH_C2[2] * x;
+        gy = 0.0 - 2.0 * SH_C2[2] * y;
+        gz = 4.0 * SH_C2[2] * z;
     } else if k == 7 {
-        gx = C2_3 * z;
-        gz = C2_3 * x;
+        gx = SH_C2[3] * z;
+        gz = SH_C2[3] * x;
     } else if k == 8 {
-        gx = 2.0 * C2_4 * x;
-        gy = 0.0 - 2.0 * C2_4 * y;
+        gx = 2.0 * SH_C2[4] * x;
+        gy = 0.0 - 2.0 * SH_C2[4] * y;
     } else if k == 9 {
-        gx = 6.0 * C3_0 * x * y;
-        gy = C3_0 * (3.0 * xx - 3.0 * yy);
+        gx = 6.0 * SH_C3[0] * x * y;
+        gy = SH_C3[0] * (3.0 * xx - 3.0 * yy);
     } else if k == 10 {
-        gx = C3_1 * y * z;
-        gy = C3_1 * x * z;
-        gz = C3_1 * x * y;
+        gx = SH_C3[1] * y * z;
+        gy = SH_C3[1] * x * z;
+        gz = SH_C3[1] * x * y;
     } else if k == 11 {
-        gx = 0.0 - 2.0 * C3_2 * x * y;
-        gy = C3_2 * (4.0 * zz - xx - 3.0 * yy);
-        gz = 8.0 * C3_2 * y * z;
+        gx = 0.0 - 2.0 * SH_C3[2] * x * y;
+        gy = SH_C3[2] * (4.0 * zz - xx - 3.0 * yy);
+        gz = 8.0 * SH_C3[2] * y * z;
     } else if k == 12 {
-        gx = 0.0 - 6.0 * C3_3 * x * z;
-        gy = 0.0 - 6.0 * C3_3 * y * z;
-        gz = C3_3 * (6.0 * zz - 3.0 * xx - 3.0 * yy);
+        gx = 0.0 - 6.0 * SH_C3[3] * x * z;
+        gy = 0.0 - 6.0 * SH_C3[3] * y * z;
+        gz = SH_C3[3] * (6.0 * zz - 3.0 * xx - 3.0 * yy);
     } else if k == 13 {
-        gx = C3_4 * (4.0 * zz - 3.0 * xx - yy);
-        gy = 0.0 - 2.0 * C3_4 * x * y;
-        gz = 8.0 * C3_4 * x * z;
+        gx = SH_C3[4] * (4.0 * zz - 3.0 * xx - yy);
+        gy = 0.0 - 2.0 * SH_C3[4] * x * y;
+        gz = 8.0 * SH_C3[4] * x * z;
     } else if k == 14 {
-        gx = 2.0 * C3_5 * x * z;
-        gy = 0.0 - 2.0 * C3_5 * y * z;
-        gz = C3_5 * (xx - yy);
+        gx = 2.0 * SH_C3[5] * x * z;
+        gy = 0.0 - 2.0 * SH_C3[5] * y * z;
+        gz = SH_C3[5] * (xx - yy);
     } else if k == 15 {
-        gx = C3_6 * (3.0 * xx - 3.0 * yy);
-        gy = 0.0 - 6.0 * C3_6 * x * y;
+        gx = SH_C3[6] * (3.0 * xx - 3.0 * yy);
+        gy = 0.0 - 6.0 * SH_C3[6] * x * y;
     }
     (gx, gy, gz)
 }
@@ -146,8 +131,7 @@ pub fn project_backward(
         terminate!();
     }
     let g = order[rank as usize];
-    let sh_stride = frame[frame_at::SH_STRIDE as usize];
-    let sh_used = frame[frame_at::SH_USED as usize];
+    let sh_coeffs = frame[frame_at::SH_COEFFS as usize];
     for k in 0..3u32 {
         grad_means[(g * 3 + k) as usize] = 0.0;
         grad_log_scales[(g * 3 + k) as usize] = 0.0;
@@ -156,8 +140,8 @@ pub fn project_backward(
         grad_rotations[(g * 4 + k) as usize] = 0.0;
     }
     grad_logits[g as usize] = 0.0;
-    for k in 0..sh_stride * 3 {
-        grad_sh[(g * sh_stride * 3 + k) as usize] = 0.0;
+    for k in 0..sh_coeffs * 3 {
+        grad_sh[(g * sh_coeffs * 3 + k) as usize] = 0.0;
     }
     grad_screen[g as usize] = 0.0;
     if tile_counts[g as usize] == 0 {
@@ -316,23 +300,19 @@ pub fn project_backward(
     let (ux, uy, uz) = (dir_x / length, dir_y / length, dir_z / length);
     let mut v_rgb = Array::<f32>::new(3usize);
     for c in 0..3u32 {
-        let mut unclamped = 0.5f32.runtime();
-        for k in 0..sh_used {
-            unclamped += sh_basis(k, ux, uy, uz) * sh[((g * sh_stride + k) * 3 + c) as usize];
-        }
         v_rgb[c as usize] = 0.0;
-        if unclamped > 0.0 {
+        if sh_color(sh, g, c, sh_coeffs, ux, uy, uz) > 0.0 {
             v_rgb[c as usize] = v[(6 + c) as usize];
         }
     }
     let mut vdx = 0.0f32.runtime();
     let mut vdy = 0.0f32.runtime();
     let mut vdz = 0.0f32.runtime();
-    for k in 0..sh_used {
+    for k in 0..sh_coeffs {
         let basis = sh_basis(k, ux, uy, uz);
         let mut weight = 0.0f32.runtime();
         for c in 0..3u32 {
-            let at = ((g * sh_stride + k) * 3 + c) as usize;
+            let at = ((g * sh_coeffs + k) * 3 + c) as usize;
             grad_sh[at] = basis * v_rgb[c as usize];
             weight += sh[at] * v_rgb[c as usize];
         }
