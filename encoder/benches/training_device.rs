@@ -15,6 +15,10 @@
 //! [--scene DIR --downscale N]` (`--quick`: the smallest case of each stage; `--gpu-steps`
 //! replaces every case's GPU step count: 1 checks the GPU path on a software rasterizer).
 //! Timings depend on the machine: report them with it.
+//!
+//! `-- --memory` instead measures, on the GPU device only, the memory one stage-1 step of each
+//! base reserve at 1600x1063 for two scene sizes and two view counts, and extrapolates linearly
+//! to 1M Gaussians (plain) or 100k anchors (1M neural Gaussians) and 300 views.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -67,6 +71,10 @@ fn memory(device: &TrainingDevice) -> String {
     device.bytes_reserved().map_or("not reported".to_string(), mib)
 }
 
+/// A base's stage-1 steps on a scene: the Gaussians or anchors, the first step's seconds and
+/// steps per second after it.
+type StageOneSteps = fn(&Dataset, usize, &TrainingDevice) -> Result<(usize, f64, f64)>;
+
 /// Plain 3DGS from the scene's points, densification off.
 fn plain_steps(data: &Dataset, steps: usize, device: &TrainingDevice) -> Result<(usize, f64, f64)> {
     let initial = initial_gaussians(data, 0, usize::MAX)?;
@@ -88,9 +96,46 @@ fn anchor_steps(data: &Dataset, steps: usize, device: &TrainingDevice) -> Result
     Ok((initial.len(), first, rate))
 }
 
-fn generated(dir: &Path, (width, height): (u32, u32), points: usize) -> Result<Dataset> {
-    generate(dir, &SyntheticOptions { width, height, views: 8, seed: 1, points })?;
+fn generated(dir: &Path, (width, height): (u32, u32), points: usize, views: usize) -> Result<Dataset> {
+    generate(dir, &SyntheticOptions { width, height, views, seed: 1, points })?;
     Ok(load_scene(dir, &LoadOptions::default())?)
+}
+
+/// Memory reserved by one stage-1 step of each base at 1600x1063 on `device`, for (points,
+/// views) cases that vary one at a time, and the linear fit's estimate at 300 views for
+/// 1M Gaussians (plain) and 100k anchors (anchor base, 10 neural Gaussians each).
+fn memory_scaling(device: &TrainingDevice, dir: &Path) -> Result<()> {
+    const CASES: [(usize, usize); 3] = [(50_000, 4), (100_000, 4), (50_000, 12)];
+    let mut reserved = [[0.0; 3]; 2];
+    let mut counts = [[0.0; 3]; 2];
+    for (i, &(points, views)) in CASES.iter().enumerate() {
+        let data = generated(&dir.join(format!("memory{i}")), (1600, 1063), points, views)?;
+        for (b, run) in [plain_steps as StageOneSteps, anchor_steps].into_iter().enumerate() {
+            device.device.memory_cleanup();
+            let (count, _, _) = run(&data, 0, device)?;
+            let bytes = device.bytes_reserved().ok_or_else(|| anyhow::anyhow!("the device reports no memory"))?;
+            (reserved[b][i], counts[b][i]) = (bytes as f64, count as f64);
+            println!(
+                "  memory {} {count} {}, {views} views: {} reserved",
+                ["plain", "anchor"][b],
+                ["Gaussians", "anchors"][b],
+                mib(bytes)
+            );
+        }
+    }
+    for (b, (target, what)) in [(1e6, "1M Gaussians"), (1e5, "100k anchors")].into_iter().enumerate() {
+        let view_bytes = (reserved[b][2] - reserved[b][0]) / (CASES[2].1 - CASES[0].1) as f64;
+        let per_item = (reserved[b][1] - reserved[b][0]) / (counts[b][1] - counts[b][0]);
+        let estimate = reserved[b][0] + per_item * (target - counts[b][0]) + view_bytes * (300 - CASES[0].1) as f64;
+        println!(
+            "  estimate {}: {:.0} bytes an item, {} a view; {what}, 300 views: {}",
+            ["plain", "anchor"][b],
+            per_item,
+            mib(view_bytes as u64),
+            mib(estimate as u64)
+        );
+    }
+    Ok(())
 }
 
 fn main() -> Result<()> {
@@ -106,11 +151,16 @@ fn main() -> Result<()> {
     }
 
     let tmp = tempfile::tempdir()?;
+    if args.iter().any(|a| a == "--memory") {
+        let gpu = devices.iter().find(|d| d.gpu).ok_or_else(|| anyhow::anyhow!("--memory measures a GPU device"))?;
+        println!("device: {}", gpu.name);
+        return memory_scaling(gpu, tmp.path());
+    }
     let mut stage_one = Vec::new();
     let sizes: &[((u32, u32), usize)] =
         if quick { &[((1008, 756), 500_000)] } else { &[((1008, 756), 500_000), ((1600, 1063), 1_000_000)] };
     for (i, &(size, points)) in sizes.iter().enumerate() {
-        let data = generated(&tmp.path().join(i.to_string()), size, points)?;
+        let data = generated(&tmp.path().join(i.to_string()), size, points, 8)?;
         let name = format!("generated {}x{}, {points} points", size.0, size.1);
         stage_one.push(StageOne { name, data, cpu_steps: 1, gpu_steps: 30 });
     }
@@ -131,7 +181,7 @@ fn main() -> Result<()> {
         for case in &stage_one {
             let steps = steps_of(case.cpu_steps, case.gpu_steps);
             let image = &case.data.train[0].image;
-            for (base, run) in [("plain", plain_steps as fn(_, _, _) -> _), ("anchor", anchor_steps)] {
+            for (base, run) in [("plain", plain_steps as StageOneSteps), ("anchor", anchor_steps)] {
                 match run(&case.data, steps, device) {
                     Ok((count, first, rate)) => println!(
                         "  stage 1 {base} on {} ({}x{}, {count} {}): first step {first:.2} s, {rate:.2} it/s over {steps}, device memory reserved {}",

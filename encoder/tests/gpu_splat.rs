@@ -156,8 +156,21 @@ fn windows_render_and_differentiate_like_the_reference() {
     let Some(device) = gpu() else { return };
     let g = random_gaussians(&mut SplitMix64(8), 200, 3, [-3.0, -1.5]);
     let camera = axis_camera(64, 48, 50.0, 52.0, 31.0, 23.0);
-    let view = SplatView { camera, options: options(), window: Window { x0: 13, y0: 7, width: 37, height: 21 } };
+    let window = Window { x0: 13, y0: 7, width: 37, height: 21 };
+    let view = SplatView { window, ..SplatView::full(camera, options()) };
     agrees(&g, view, &device);
+}
+
+/// Over its entry budget a view renders in windows, down to single tiles whose lists exceed
+/// the budget of 40 entries here, to the reference's image and gradients, whole or windowed.
+#[test]
+fn a_view_over_its_entry_budget_renders_in_windows_like_the_reference() {
+    let Some(device) = gpu() else { return };
+    let g = random_gaussians(&mut SplitMix64(11), 300, 1, [-2.5, -1.0]);
+    let camera = axis_camera(64, 48, 50.0, 52.0, 31.0, 23.0);
+    for window in [Window::full(&camera), Window { x0: 5, y0: 3, width: 50, height: 40 }] {
+        agrees(&g, SplatView { window, entry_budget: 40, ..SplatView::full(camera, options()) }, &device);
+    }
 }
 
 /// Needles: axis ratios of e^7 to e^12 in random orientations.

@@ -216,6 +216,7 @@ impl EncodeArgs {
             growth: a.anchor_growth,
             max_anchors: a.max_anchors,
             learned_steps: !a.fixed_anchor_steps,
+            image_budget: t.image_budget_mib.saturating_mul(1 << 20),
             wrapper: self.wrapper.training(t.iters, t.seed, self.weight_dirs(), ANCHOR_STAGE_TWO_LR_SCALE)?,
         })
     }
@@ -255,6 +256,7 @@ impl EncodeArgs {
         }
         config.background = self.background;
         config.seed = t.seed;
+        config.image_budget = t.image_budget_mib.saturating_mul(1 << 20);
         config.densify.max_gaussians = p.max_gaussians;
         Ok(PlainTraining { init_ply: p.init_ply.clone(), config, quality: p.quality })
     }

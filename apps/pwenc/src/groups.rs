@@ -12,6 +12,7 @@ use pwgs_encoder::anchor::train::StageTwoLambda;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric};
 use pwgs_encoder::plain::compress::{DEFAULT_QUALITY, MAX_QUALITY};
 use pwgs_encoder::train::device::DeviceChoice;
+use pwgs_encoder::train::views::DEFAULT_IMAGE_BUDGET;
 
 use crate::values::{SpzAxesArg, parse_positive, parse_rate_pair, parse_stage_two_lambda, parse_weight};
 
@@ -201,6 +202,11 @@ pub(crate) struct TrainingArgs {
     /// feature), else the CPU.
     #[arg(long, value_enum, default_value = "auto")]
     pub(crate) device: DeviceChoice,
+    /// Training images kept on the training device, in MiB.
+    ///
+    /// Views beyond it stay in host memory and are uploaded each time a step draws them.
+    #[arg(long, default_value_t = DEFAULT_IMAGE_BUDGET >> 20, value_name = "MIB", hide_short_help = true)]
+    pub(crate) image_budget_mib: usize,
 }
 
 /// Options of the evaluation on the test views after training.

@@ -17,9 +17,11 @@
 
 use std::collections::{BTreeMap, HashSet};
 
+use burn::tensor::{Device, Tensor};
 use pwgs_core::random::SplitMix64;
 
-use crate::plain::densify::GradStats;
+use crate::plain::densify::{DeviceGradStats, GradStats};
+use crate::train::params::tensor_values;
 
 /// Levels of growth and the cell of the coarsest, in voxels (Scaffold-GS's `update_depth` and
 /// `update_init_factor`); each level's cell is 4x smaller and its threshold 2x larger.
@@ -54,7 +56,7 @@ impl GrowthSchedule {
     }
 }
 
-/// What the steps since the last event saw.
+/// What the steps since the last event saw, as [`plan`] reads it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AnchorStats {
     /// Per neural Gaussian (anchor-major, N x K).
@@ -66,35 +68,49 @@ pub struct AnchorStats {
     per_anchor: usize,
 }
 
-impl AnchorStats {
-    pub fn new(anchors: usize, per_anchor: usize) -> Self {
+/// [`AnchorStats`] gathered on the training device, so that a step reads nothing back; read
+/// at each event.
+#[derive(Debug, Clone)]
+pub struct DeviceAnchorStats {
+    gradients: DeviceGradStats,
+    seen: Tensor<1>,
+    opacity: Tensor<1>,
+    steps: u32,
+    shape: [usize; 2],
+}
+
+impl DeviceAnchorStats {
+    pub fn new(anchors: usize, per_anchor: usize, device: &Device) -> Self {
         Self {
-            gradients: GradStats::new(anchors * per_anchor),
-            seen: vec![0; anchors],
-            opacity: vec![0.0; anchors],
+            gradients: DeviceGradStats::new(anchors * per_anchor, device),
+            seen: Tensor::zeros([anchors], device),
+            opacity: Tensor::zeros([anchors], device),
             steps: 0,
-            per_anchor,
+            shape: [anchors, per_anchor],
         }
     }
 
-    /// One step: the rendered neural Gaussians (indices into N x K), with their screen
-    /// gradients and opacities. A Gaussian (and its anchor) counts as seen when its gradient is
-    /// non-zero.
-    pub fn add(&mut self, rendered: &[usize], screen: &[f32], opacity: &[f32]) {
-        let mut norms = vec![0.0; self.seen.len() * self.per_anchor];
-        let mut seen = vec![false; self.seen.len()];
-        for ((&j, &g), &a) in rendered.iter().zip(screen).zip(opacity) {
-            norms[j] = g.abs();
-            if g != 0.0 {
-                seen[j / self.per_anchor] = true;
-                self.opacity[j / self.per_anchor] += a;
-            }
-        }
-        self.gradients.add(&norms);
-        for (count, s) in self.seen.iter_mut().zip(seen) {
-            *count += u32::from(s);
-        }
+    /// One step: every neural Gaussian's screen gradient norm and opacity ([N x K] each; zero
+    /// for those not rendered). A Gaussian (and its anchor) counts as seen when its norm is
+    /// positive; an anchor's opacity sums over its seen Gaussians.
+    pub fn add(&mut self, norms: Tensor<1>, opacity: Tensor<1>) {
+        let [n, k] = self.shape;
+        let seen = norms.clone().greater_elem(0.0);
+        self.gradients.add(norms);
+        let seen_opacity = opacity.mask_fill(seen.clone().bool_not(), 0.0).reshape([n, k]).sum_dim(1);
+        self.opacity = self.opacity.clone() + seen_opacity.reshape([n]);
+        self.seen = self.seen.clone() + seen.float().reshape([n, k]).max_dim(1).reshape([n]);
         self.steps += 1;
+    }
+
+    pub fn to_host(&self) -> AnchorStats {
+        AnchorStats {
+            gradients: self.gradients.to_host(),
+            seen: tensor_values(self.seen.clone()).into_iter().map(|v| v as u32).collect(),
+            opacity: tensor_values(self.opacity.clone()),
+            steps: self.steps,
+            per_anchor: self.shape[1],
+        }
     }
 }
 
@@ -177,6 +193,34 @@ pub fn plan(
 mod tests {
     use super::*;
 
+    /// The statistics of `anchors` x `k` neural Gaussians after `steps` (each step's norms and
+    /// opacities, N x K), gathered on the CPU device.
+    fn stats_of(anchors: usize, k: usize, steps: &[(&[f32], &[f32])]) -> AnchorStats {
+        let device = Device::flex();
+        let mut stats = DeviceAnchorStats::new(anchors, k, &device);
+        let tensor = |v: &[f32]| Tensor::<1>::from_data(burn::tensor::TensorData::new(v.to_vec(), [v.len()]), &device);
+        for (norms, opacity) in steps {
+            stats.add(tensor(norms), tensor(opacity));
+        }
+        stats.to_host()
+    }
+
+    #[test]
+    fn an_anchor_is_seen_and_sums_opacity_through_its_seen_gaussians() {
+        // Anchor 0: Gaussian 0 seen twice, Gaussian 1 never (its opacity does not count);
+        // anchor 1: Gaussian 3 seen once (a NaN norm is not seen).
+        let stats = stats_of(
+            2,
+            2,
+            &[(&[0.5, 0.0, 0.0, 2.0], &[0.25, 0.75, 0.5, 0.5]), (&[1.5, 0.0, f32::NAN, 0.0], &[0.25, 0.75, 0.5, 0.5])],
+        );
+        assert_eq!(stats.steps, 2);
+        assert_eq!(stats.seen, vec![2, 1]);
+        assert_eq!(stats.opacity, vec![0.5, 0.5]);
+        assert_eq!(stats.gradients.views, vec![2, 0, 0, 1]);
+        assert_eq!((stats.gradients.mean(0), stats.gradients.mean(3)), (1.0, 2.0));
+    }
+
     fn schedule() -> GrowthSchedule {
         GrowthSchedule { from: 100, until: 1000, every: 100, max_anchors: 100 }
     }
@@ -192,11 +236,9 @@ mod tests {
     fn strong_gradients_grow_anchors_in_empty_cells_and_faint_anchors_are_pruned() {
         // Two anchors of 2 neural Gaussians on a 64-voxel grid.
         let voxels = [[0, 0, 0], [40, 40, 40]];
-        let mut stats = AnchorStats::new(2, 2);
-        for _ in 0..10 {
-            // Gaussian 1 (anchor 0) has a strong gradient; anchor 1 is seen but transparent.
-            stats.add(&[0, 1, 2], &[1e-5, 1.0, 1e-5], &[0.5, 0.5, 0.001]);
-        }
+        // Gaussian 1 (anchor 0) has a strong gradient; anchor 1 is seen but transparent.
+        let step: (&[f32], &[f32]) = (&[1e-5, 1.0, 1e-5, 0.0], &[0.5, 0.5, 0.001, 0.0]);
+        let stats = stats_of(2, 2, &[step; 10]);
         let neural = [[0.0; 3], [30.0, 2.0, 2.0], [40.0; 3], [40.0; 3]];
         let mut rng = SplitMix64(7);
         let p = plan(&stats, &voxels, 6, &neural, &schedule(), &mut rng);
@@ -219,20 +261,16 @@ mod tests {
     #[test]
     fn weak_or_rare_gradients_and_full_grids_grow_nothing() {
         let voxels = [[0, 0, 0]];
-        let mut stats = AnchorStats::new(1, 1);
-        stats.add(&[0], &[1e-5], &[0.5]);
+        let stats = stats_of(1, 1, &[(&[1e-5], &[0.5])]);
         let far = [[30.0, 0.0, 0.0]];
         assert!(plan(&stats, &voxels, 6, &far, &schedule(), &mut SplitMix64(1)).grown.is_empty());
         // A strong gradient seen once in 10 steps is too rare.
-        let mut rare = AnchorStats::new(1, 1);
-        rare.add(&[0], &[1.0], &[0.5]);
-        for _ in 0..9 {
-            rare.add(&[], &[], &[]);
-        }
+        let mut steps: Vec<(&[f32], &[f32])> = vec![(&[1.0], &[0.5])];
+        steps.extend([(&[0.0][..], &[0.0][..]); 9]);
+        let rare = stats_of(1, 1, &steps);
         assert!(plan(&rare, &voxels, 6, &far, &schedule(), &mut SplitMix64(1)).grown.is_empty());
         // Outside the grid's cube (depth 2: 4 voxels) nothing grows; at the cap neither.
-        let mut strong = AnchorStats::new(1, 1);
-        strong.add(&[0], &[1.0], &[0.5]);
+        let strong = stats_of(1, 1, &[(&[1.0], &[0.5])]);
         assert!(plan(&strong, &voxels, 2, &far, &schedule(), &mut SplitMix64(1)).grown.is_empty());
         let capped = GrowthSchedule { max_anchors: 1, ..schedule() };
         assert!(plan(&strong, &voxels, 6, &far, &capped, &mut SplitMix64(1)).grown.is_empty());

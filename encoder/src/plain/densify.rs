@@ -48,27 +48,13 @@ pub struct GradStats {
 }
 
 impl GradStats {
-    pub fn new(n: usize) -> Self {
-        Self { sum: vec![0.0; n], views: vec![0; n] }
-    }
-
-    /// Adds one view's gradient norms; a Gaussian counts as seen when its gradient is non-zero.
-    pub fn add(&mut self, norms: &[f32]) {
-        for (i, &g) in norms.iter().enumerate() {
-            if g > 0.0 {
-                self.sum[i] += g;
-                self.views[i] += 1;
-            }
-        }
-    }
-
     pub fn mean(&self, i: usize) -> f32 {
         if self.views[i] == 0 { 0.0 } else { self.sum[i] / self.views[i] as f32 }
     }
 }
 
-/// [`GradStats`] accumulated on the training device, as [`GradStats::add`] does on the host,
-/// so that a step reads nothing back; read at densification time.
+/// [`GradStats`] accumulated on the training device, so that a step reads nothing back; read at
+/// densification time.
 #[derive(Debug, Clone)]
 pub struct DeviceGradStats {
     sum: Tensor<1>,

@@ -13,10 +13,10 @@
 use std::time::Instant;
 
 use anyhow::{Result, bail};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use pwgs_core::gaussians::{Gaussians, MAX_SH_DEGREE, sh_coeff_count};
 use pwgs_core::random::SplitMix64;
-use pwgs_dataset::{Dataset, View};
+use pwgs_dataset::Dataset;
 use pwgs_render::raster::RenderOptions;
 
 use super::densify::{DensifyConfig, DensifyReport, DeviceGradStats, HostState, densify, reset_opacity};
@@ -25,6 +25,7 @@ use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::train::adam::{LearningRates, Moments};
 use crate::train::params::{SplatParams, tensor_values};
 use crate::train::splat_op::{SplatView, render};
+use crate::train::views::{DEFAULT_IMAGE_BUDGET, TrainViews};
 use crate::wrapper::stage::{WrapperStage, WrapperTraining};
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::frame::SceneFrame;
@@ -59,6 +60,8 @@ pub struct TrainConfig {
     pub seed: u64,
     /// Stage 2 with the perceptual wrapper; `None` trains the base alone.
     pub wrapper: Option<WrapperTraining>,
+    /// Bytes of target images kept on the training device ([`TrainViews`]).
+    pub image_budget: usize,
 }
 
 impl TrainConfig {
@@ -85,6 +88,7 @@ impl TrainConfig {
             background: [0.0; 3],
             seed: 0,
             wrapper: None,
+            image_budget: DEFAULT_IMAGE_BUDGET,
         }
     }
 
@@ -124,13 +128,6 @@ impl TrainConfig {
     }
 }
 
-/// A training view with its ground truth uploaded once.
-struct TrainView {
-    camera: pwgs_core::camera::Camera,
-    /// [H, W, 3]
-    target: Tensor<3>,
-}
-
 /// What one step reports.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepReport {
@@ -146,7 +143,7 @@ pub struct Trainer {
     pub params: SplatParams,
     moments: Moments,
     stats: DeviceGradStats,
-    views: Vec<TrainView>,
+    views: TrainViews,
     order: Vec<usize>,
     extent: f32,
     frame: SceneFrame,
@@ -160,11 +157,6 @@ pub struct Trainer {
     pub iteration: u32,
     /// Consecutive steps undone because they produced non-finite values.
     failed_steps: u32,
-}
-
-fn upload_image(view: &View, device: &Device) -> Tensor<3> {
-    let (w, h) = (view.image.width as usize, view.image.height as usize);
-    Tensor::from_data(TensorData::new(view.image.data.clone(), [h, w, 3]), device)
 }
 
 impl Trainer {
@@ -186,8 +178,7 @@ impl Trainer {
         }
         let cameras: Vec<_> = dataset.train.iter().map(|v| v.camera).collect();
         let wd = config.wrapper.as_ref().map(|w| w.prepare(&cameras, &device)).transpose()?;
-        let views =
-            dataset.train.iter().map(|v| TrainView { camera: v.camera, target: upload_image(v, &device) }).collect();
+        let views = TrainViews::new(&dataset.train, config.image_budget, &device);
         Ok(Self {
             moments: Moments::zeros_like(&params),
             stats: DeviceGradStats::new(params.len(), &device),
@@ -225,8 +216,7 @@ impl Trainer {
         self.start_wrapper_if_due();
         let it = self.iteration;
         let view_index = self.next_view();
-        let camera = self.views[view_index].camera;
-        let target = self.views[view_index].target.clone();
+        let (camera, target) = self.views.get(view_index);
         let degree = self.config.active_degree(it);
         let n = self.params.len();
         let p = &self.params;
@@ -344,9 +334,9 @@ impl Trainer {
             && self.iteration >= settings.start
             && let Some(wd) = self.wd.take()
         {
-            let cameras: Vec<_> = self.views.iter().map(|v| v.camera).collect();
+            let cameras = self.views.cameras();
             self.wrapper =
-                Some(WrapperStage::new(settings.clone(), wd, &cameras, self.frame, &mut self.rng, &self.device));
+                Some(WrapperStage::new(settings.clone(), wd, cameras, self.frame, &mut self.rng, &self.device));
         }
     }
 

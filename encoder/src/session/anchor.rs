@@ -64,6 +64,8 @@ pub struct AnchorTraining {
     /// Learn a factor on each group's step while the rate term is on (the stream is written
     /// with the learned steps).
     pub learned_steps: bool,
+    /// Bytes of training images kept on the training device ([`crate::train::views`]).
+    pub image_budget: usize,
     /// Stage 2 with the perceptual wrapper after the `iterations` of stage 1, for
     /// `crops_per_view` steps per training view.
     pub wrapper: Option<WrapperTraining>,
@@ -222,7 +224,8 @@ fn configure(job: &AnchorTraining, data: &Dataset, device: &TrainingDevice) -> R
     );
     let stage_two = job.wrapper.as_ref().map_or(0, |w| w.stage_two_steps(data.train.len()));
     let total = job.iterations.saturating_add(stage_two);
-    let mut trainer = AnchorTrainer::new(&initial, data, total, job.background, job.seed, &device.device)?;
+    let mut trainer = AnchorTrainer::new(&initial, data, total, job.background, job.seed, &device.device)?
+        .with_image_budget(job.image_budget);
     if let Some(w) = &job.wrapper {
         trainer = trainer.with_wrapper(w.clone())?.with_stage_two_lambda(job.stage_two_lambda);
         say!(

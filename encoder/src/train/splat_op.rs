@@ -44,6 +44,10 @@ pub struct SplatTensors<B: Backend> {
     pub screen_probe: FloatTensor<B>,
 }
 
+/// Most tile-list entries the GPU kernels bin at once by default: 2^25, about 1.9 GB across
+/// the binning's and the backward pass's buffers (56 bytes an entry).
+pub const ENTRY_BUDGET: u64 = 1 << 25;
+
 /// What to render: camera, rasterizer settings and the part of the image wanted.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SplatView {
@@ -52,12 +56,16 @@ pub struct SplatView {
     /// The pixels rendered (the image is [window height, window width, 3]); they are exactly
     /// those pixels of the whole render, and only they pass gradients back.
     pub window: Window,
+    /// Most tile-list entries one binning on the GPU holds: a view whose lists would hold more
+    /// renders in windows that fit, to the same pixels and gradients. (The CPU reference bins
+    /// within its own budget, `pwgs_render`'s `BinBudget`.)
+    pub entry_budget: u64,
 }
 
 impl SplatView {
     /// The whole image of `camera`.
     pub fn full(camera: Camera, options: RenderOptions) -> Self {
-        Self { camera, options, window: Window::full(&camera) }
+        Self { camera, options, window: Window::full(&camera), entry_budget: ENTRY_BUDGET }
     }
 
     fn rasterize(&self, gaussians: &Gaussians) -> Rendered {

@@ -306,8 +306,7 @@ impl WrapperStage {
         let (mut first, mut second) = (self.first.clone(), self.second.clone());
         let next =
             self.flat.clone() - direction(grad, &mut first, &mut second, self.steps + 1) * self.settings.learning_rate;
-        let values = next.clone().into_data().convert::<f32>().try_into_vec::<f32>().expect("f32 data");
-        if !values.iter().all(|v| v.is_finite()) {
+        if !next.clone().is_finite().all().into_scalar::<bool>() {
             return None;
         }
         (self.flat, self.first, self.second) = (next, first, second);

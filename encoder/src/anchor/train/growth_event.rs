@@ -3,7 +3,7 @@
 
 use super::{AnchorTrainer, Growth, GrowthTotals, INITIAL_MASK_LOGIT, MASK_LOGITS};
 use crate::anchor::context::ContextLookup;
-use crate::anchor::growth::{AnchorStats, GrowthPlan, GrowthSchedule, plan};
+use crate::anchor::growth::{DeviceAnchorStats, GrowthPlan, GrowthSchedule, plan};
 use crate::anchor::host::kept_and_added;
 use crate::train::params::tensor_values;
 
@@ -13,7 +13,7 @@ impl AnchorTrainer {
     pub fn with_growth(mut self, schedule: GrowthSchedule) -> Self {
         assert!(self.placement.is_some(), "growth places anchors on the trainer's grid");
         let [n, _, k] = self.shape;
-        let stats = AnchorStats::new(n, k);
+        let stats = DeviceAnchorStats::new(n, k, &self.positions.device());
         self.growth = Some(Growth { schedule, stats, totals: GrowthTotals::default() });
         self
     }
@@ -45,7 +45,7 @@ impl AnchorTrainer {
             })
             .collect();
         let GrowthPlan { keep, grown } =
-            plan(&growth.stats, &placement.voxels, grid.depth, &neural, &growth.schedule, &mut self.rng);
+            plan(&growth.stats.to_host(), &placement.voxels, grid.depth, &neural, &growth.schedule, &mut self.rng);
         let features = tensor_values(self.params[0].clone());
         let mut added: [Vec<f32>; 4] = Default::default();
         for g in &grown {
@@ -63,13 +63,13 @@ impl AnchorTrainer {
         }
         let new_positions: Vec<f32> = grown.iter().flat_map(|g| grid.position(g.voxel)).collect();
         self.positions = kept_and_added(&self.positions, &keep, &new_positions);
-        let masks: Vec<bool> = keep.iter().flat_map(|&a| self.masks[a * k..(a + 1) * k].iter().copied()).collect();
-        self.masks = masks.into_iter().chain(std::iter::repeat_n(true, grown.len() * k)).collect();
+        self.masks = kept_and_added(&self.masks, &keep, &vec![1.0; grown.len() * k]);
+        placement.side_bits = None;
         placement.voxels = keep.iter().map(|&a| placement.voxels[a]).chain(grown.iter().map(|g| g.voxel)).collect();
         let anchors = placement.voxels.len();
         growth.totals.grown += grown.len();
         growth.totals.pruned += n - keep.len();
-        growth.stats = AnchorStats::new(anchors, k);
+        growth.stats = DeviceAnchorStats::new(anchors, k, &device);
         self.shape[0] = anchors;
         if let Some(lookup) = &self.context {
             self.context = Some(ContextLookup::new(lookup.shape.clone(), &placement.voxels, grid.depth, &device));

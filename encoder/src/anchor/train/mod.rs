@@ -27,25 +27,27 @@
 
 use anyhow::{Result, bail};
 use burn::tensor::activation::{log_sigmoid, sigmoid};
-use burn::tensor::{Device, Int, Tensor, TensorData};
+use burn::tensor::{Device, Tensor, TensorData};
 use pwgs_codec::anchor::AnchorModel;
 use pwgs_codec::stream::anchor_context::predicted_values;
 use pwgs_codec::stream::plain::PositionGrid;
-use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::SH_C0;
 use pwgs_core::random::SplitMix64;
 use pwgs_dataset::Dataset;
 use pwgs_render::raster::RenderOptions;
 
 mod growth_event;
+mod noise_pool;
 mod rate_term;
 mod stage_two_lambda;
+
+use noise_pool::NoisePool;
 
 use stage_two_lambda::DistortionScale;
 pub use stage_two_lambda::StageTwoLambda;
 
 use super::context::ContextLookup;
-use super::growth::{AnchorStats, GrowthSchedule};
+use super::growth::{DeviceAnchorStats, GrowthSchedule};
 use super::host::{host_tensor, mlp_of, mlp_tensors};
 use super::quantize::{AnchorSteps, TrainedContext};
 use crate::metrics::ssim::{SsimConvention, ssim};
@@ -53,6 +55,7 @@ use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::train::adam::direction;
 use crate::train::params::tensor_values;
 use crate::train::splat_op::{SplatView, render};
+use crate::train::views::{DEFAULT_IMAGE_BUDGET, TrainViews};
 use crate::wrapper::stage::{WrapperStage, WrapperTraining};
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
 use pwgs_core::frame::SceneFrame;
@@ -106,14 +109,16 @@ pub struct AnchorTrainer {
     params: Vec<Tensor<2>>,
     moments: Vec<(Tensor<2>, Tensor<2>)>,
     shape: [usize; 3],
-    masks: Vec<bool>,
-    views: Vec<(Camera, Tensor<3>)>,
+    /// The masks [N, K] (1 open, 0 shut) while the rate term does not learn them.
+    masks: Tensor<2>,
+    views: TrainViews,
     background: [f32; 3],
     extent: f32,
     rng: SplitMix64,
     /// Quantization steps of features, scaling and offsets, and the iteration from which
     /// their noise is on.
     noise: Option<(AnchorSteps, u32)>,
+    noise_pool: Option<NoisePool>,
     /// λ and the iteration from which the rate term and the learned masks are on.
     rate_term: Option<(f32, u32)>,
     /// The context model that replaces the factorized one in the rate term, when on.
@@ -138,12 +143,15 @@ pub struct AnchorTrainer {
 struct Placement {
     grid: PositionGrid,
     voxels: Vec<[u32; 3]>,
+    /// The rate term's side bits per open anchor ([`rate_term::side_bits`]) and the iteration
+    /// they were counted at.
+    side_bits: Option<(u32, f32)>,
 }
 
 /// Growing and pruning: when, what the steps since the last event saw, and the totals so far.
 struct Growth {
     schedule: GrowthSchedule,
-    stats: AnchorStats,
+    stats: DeviceAnchorStats,
     totals: GrowthTotals,
 }
 
@@ -177,11 +185,9 @@ pub(crate) fn pixel_loss(image: Tensor<3>, target: Tensor<3>) -> Tensor<1> {
 
 /// Straight-through masks [N, K] from their logits: `masks` (1 or 0) forward, the sigmoid's
 /// gradient backward.
-fn mask_gate(logits: Tensor<2>, masks: &[bool]) -> Tensor<2> {
+fn mask_gate(logits: Tensor<2>, masks: Tensor<2>) -> Tensor<2> {
     let soft = sigmoid(logits);
-    let hard: Vec<f32> = masks.iter().map(|&m| f32::from(u8::from(m))).collect();
-    let hard = host_tensor(&hard, soft.dims(), &soft.device()).autodiff();
-    soft.clone() - soft.detach() + hard
+    soft.clone() - soft.detach() + masks.autodiff()
 }
 
 /// relu(x W1 + b1) W2 + b2 for rows x.
@@ -219,6 +225,7 @@ impl AnchorTrainer {
         for m in [&initial.opacity, &initial.color, &initial.covariance] {
             params.extend(mlp_tensors(m, &device));
         }
+        let open: Vec<f32> = initial.masks.iter().map(|&m| f32::from(u8::from(m))).collect();
         let logits: Vec<f32> = initial
             .masks
             .iter()
@@ -229,25 +236,19 @@ impl AnchorTrainer {
             params.push(Tensor::zeros([1, width], &device));
             params.push(Tensor::zeros([1, width], &device));
         }
-        let views = data
-            .train
-            .iter()
-            .map(|v| {
-                let (w, h) = (v.image.width as usize, v.image.height as usize);
-                (v.camera, Tensor::from_data(TensorData::new(v.image.data.clone(), [h, w, 3]), &device))
-            })
-            .collect();
+        let views = TrainViews::new(&data.train, DEFAULT_IMAGE_BUDGET, &device);
         Ok(Self {
             positions: host_tensor(&positions, [n, 3], &device),
             moments: params.iter().map(|p| (p.zeros_like(), p.zeros_like())).collect(),
             params,
             shape: [n, f, k],
-            masks: initial.masks.clone(),
+            masks: host_tensor(&open, [n, k], &device),
             views,
             background,
             extent: data.normalization.scale,
             rng: SplitMix64(seed),
             noise: None,
+            noise_pool: None,
             rate_term: None,
             context: None,
             learned_steps: None,
@@ -260,6 +261,12 @@ impl AnchorTrainer {
             iteration: 0,
             iterations,
         })
+    }
+
+    /// Keeps at most `bytes` of target images on the training device ([`TrainViews`]).
+    pub fn with_image_budget(mut self, bytes: usize) -> Self {
+        self.views.set_budget(bytes);
+        self
     }
 
     /// Trains with the quantization noise of `steps` from iteration `from` on.
@@ -280,7 +287,7 @@ impl AnchorTrainer {
     /// anchor costs besides its values (its position and masks, [`rate_term::side_bits`]).
     pub fn with_placement(mut self, grid: PositionGrid, voxels: Vec<[u32; 3]>) -> Self {
         assert_eq!(voxels.len(), self.shape[0], "one voxel per anchor");
-        self.placement = Some(Placement { grid, voxels });
+        self.placement = Some(Placement { grid, voxels, side_bits: None });
         self
     }
 
@@ -319,8 +326,7 @@ impl AnchorTrainer {
     /// Trains the perceptual wrapper from `settings.start` on. Loads what WD compares now, so
     /// that missing weights are reported before any training.
     pub fn with_wrapper(mut self, settings: WrapperTraining) -> Result<Self> {
-        let cameras: Vec<Camera> = self.views.iter().map(|(c, _)| *c).collect();
-        let wd = settings.prepare(&cameras, &self.positions.device())?;
+        let wd = settings.prepare(self.views.cameras(), &self.positions.device())?;
         self.wrapper_settings = Some((settings, wd));
         self.distortion_scale = Some(DistortionScale::new(StageTwoLambda::Scaled));
         Ok(self)
@@ -349,9 +355,9 @@ impl AnchorTrainer {
         if self.wrapper_settings.as_ref().is_some_and(|(s, _)| self.iteration >= s.start)
             && let Some((settings, wd)) = self.wrapper_settings.take()
         {
-            let cameras: Vec<Camera> = self.views.iter().map(|(c, _)| *c).collect();
             let device = self.positions.device();
-            self.wrapper = Some(WrapperStage::new(settings, wd, &cameras, self.frame, &mut self.rng, &device));
+            let cameras = self.views.cameras();
+            self.wrapper = Some(WrapperStage::new(settings, wd, cameras, self.frame, &mut self.rng, &device));
         }
     }
 
@@ -361,12 +367,11 @@ impl AnchorTrainer {
         (self.iteration >= from && self.noise.is_some()).then_some(lambda)
     }
 
-    /// The masks as the stream stores them: fixed ones until the rate term starts learning them.
-    fn open_masks(&self) -> Vec<bool> {
+    /// The masks [N, K] as the stream stores them (1 open, 0 shut): fixed ones until the rate
+    /// term starts learning them.
+    fn open_masks(&self) -> Tensor<2> {
         match self.rate_term {
-            Some(_) => {
-                tensor_values(self.params[MASK_LOGITS].clone()).iter().map(|&l| l > MASK_THRESHOLD_LOGIT).collect()
-            }
+            Some(_) => self.params[MASK_LOGITS].clone().greater_elem(MASK_THRESHOLD_LOGIT).float(),
             None => self.masks.clone(),
         }
     }
@@ -379,8 +384,12 @@ impl AnchorTrainer {
             return None;
         }
         let shape = self.params[i].dims();
-        let values: Vec<f32> = (0..shape[0] * shape[1]).map(|_| self.rng.uniform(-0.5, 0.5)).collect();
-        Some(host_tensor(&values, shape, &self.positions.device()))
+        let window = shape[0] * shape[1];
+        if !self.noise_pool.as_ref().is_some_and(|pool| pool.fits(window)) {
+            let largest = (0..3).map(|j| self.params[j].shape().num_elements()).max().unwrap_or(window);
+            self.noise_pool = Some(NoisePool::new(largest, &mut self.rng, &self.positions.device()));
+        }
+        self.noise_pool.as_ref().map(|pool| pool.draw(shape, &mut self.rng))
     }
 
     /// The learning rate of parameter `i` at the current iteration (in stage 2, times the
@@ -408,7 +417,7 @@ impl AnchorTrainer {
         self.start_wrapper_if_due();
         let [n, _, k] = self.shape;
         let view_index = (self.rng.next_u64() % self.views.len() as u64) as usize;
-        let (camera, target) = self.views[view_index].clone();
+        let (camera, target) = self.views.get(view_index);
         let device = self.positions.device();
         let tracked: Vec<Tensor<2>> = self.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
         // Features, scaling and offsets as the step sees them: with quantization noise when on.
@@ -426,34 +435,28 @@ impl AnchorTrainer {
         let alpha = forward(input.clone(), &tracked[3..7]).tanh();
         let lambda = self.lambda();
         let masks = if lambda.is_some() { self.open_masks() } else { self.masks.clone() };
-        let open_masks = masks.iter().filter(|&&m| m).count();
-        let mask_gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
-        // The kept neural Gaussians: positive opacity and an open mask.
-        let alpha_host = tensor_values(alpha.clone().inner());
-        let kept: Vec<i64> = (0..n * k).filter(|&j| masks[j] && alpha_host[j] > 0.0).map(|j| j as i64).collect();
-        if kept.is_empty() {
-            bail!("no anchor gives a visible Gaussian at iteration {}", self.iteration);
-        }
-        let m = kept.len();
-        let index = Tensor::<1, Int>::from_data(TensorData::new(kept.clone(), [m]), &device);
-        let per_gaussian = |t: Tensor<2>, width: usize| t.reshape([n * k, width]).select(0, index.clone());
-        let per_anchor = |t: Tensor<2>, width: usize| {
-            per_gaussian(t.unsqueeze_dim::<3>(1).repeat_dim(1, k).reshape([n * k, width]), width)
-        };
+        let mask_gate = mask_gate(tracked[MASK_LOGITS].clone(), masks.clone());
+        // The kept neural Gaussians: positive opacity and an open mask. Every Gaussian is
+        // rendered, the others at an opacity the rasterizer culls (and so with no gradient),
+        // which keeps the step's shapes and the choice on the device.
+        let opacity = alpha.clone().inner().reshape([n * k]);
+        let kept = opacity.clone().greater_elem(0.0).float() * masks.clone().reshape([n * k]);
+        let dropped = kept.clone().lower_elem(0.5).reshape([n * k, 1]);
+        let per_anchor = |t: Tensor<2>, width: usize| t.unsqueeze_dim::<3>(1).repeat_dim(1, k).reshape([n * k, width]);
         let alpha = if lambda.is_some() { alpha * mask_gate.clone() } else { alpha };
-        let alpha = per_gaussian(alpha, 1).clamp(1e-6, 1.0 - 1e-6);
-        let color = per_gaussian(sigmoid(forward(input.clone(), &tracked[7..11])), 3);
-        let cov = per_gaussian(forward(input, &tracked[11..15]), 7);
+        let alpha = alpha.reshape([n * k, 1]).clamp(1e-6, 1.0 - 1e-6).mask_fill(dropped.clone(), 1e-6);
+        let color = sigmoid(forward(input.clone(), &tracked[7..11])).reshape([n * k, 3]);
+        let cov = forward(input, &tracked[11..15]).reshape([n * k, 7]);
         let scaling = per_anchor(attributes[1].clone(), 6);
         let anchors = per_anchor(self.positions.clone().autodiff(), 3);
-        let offsets = per_gaussian(attributes[2].clone(), 3);
-        let means = anchors + offsets * scaling.clone().slice([0..m, 0..3]).exp();
-        let log_scales = scaling.slice([0..m, 3..6]) + log_sigmoid(cov.clone().slice([0..m, 0..3]));
-        let rotations = cov.slice([0..m, 3..7]);
-        let opacity_logits = (alpha.clone() / (alpha.neg() + 1.0)).log().reshape([m]);
-        let sh = ((color - 0.5) / SH_C0).reshape([m, 1, 3]);
+        let offsets = attributes[2].clone().reshape([n * k, 3]);
+        let means = anchors + offsets * scaling.clone().slice([0..n * k, 0..3]).exp();
+        let log_scales = scaling.slice([0..n * k, 3..6]) + log_sigmoid(cov.clone().slice([0..n * k, 0..3]));
+        let rotations = cov.slice([0..n * k, 3..7]);
+        let opacity_logits = (alpha.clone() / (alpha.neg() + 1.0)).log().reshape([n * k]);
+        let sh = ((color - 0.5) / SH_C0).reshape([n * k, 1, 3]);
         let gathering = self.growth.as_ref().is_some_and(|g| self.iteration < g.schedule.until);
-        let probe = Tensor::<1>::zeros([m], &device).autodiff();
+        let probe = Tensor::<1>::zeros([n * k], &device).autodiff();
         let probe = if gathering { probe.require_grad() } else { probe };
         let step_crop = self.wrapper.as_ref().map(|stage| stage.crop(self.rng.next_u64() as usize));
         let mut view = SplatView::full(camera, RenderOptions { background: self.background, ..Default::default() });
@@ -461,7 +464,11 @@ impl AnchorTrainer {
             view.window = c.window;
         }
         let image = render(means, log_scales.clone(), rotations, opacity_logits, sh, probe.clone(), view);
-        let volume = log_scales.sum_dim(1).exp().mean() * VOLUME_WEIGHT;
+        // The mean over the kept Gaussians (exp(-inf) = 0 has no gradient, where a dropped
+        // Gaussian's overflowing volume times 0 would make a NaN).
+        let kept_count = kept.sum();
+        let volume = log_scales.sum_dim(1).mask_fill(dropped, f32::NEG_INFINITY).exp().sum() / kept_count.clone()
+            * VOLUME_WEIGHT;
         let (distortion, shown, wrapper_params) = match (&mut self.wrapper, step_crop) {
             (Some(stage), Some(step)) => {
                 // WD of the wrapped crop, plus the base's objective on the crop when weighted.
@@ -484,29 +491,35 @@ impl AnchorTrainer {
         let (x0, y0) = (w.x0 as usize, w.y0 as usize);
         let seen = target.slice([y0..y0 + w.height as usize, x0..x0 + w.width as usize, 0..3]);
         let mse = (shown.inner() - seen).powi_scalar(2).mean();
-        if let Some(scale) = &mut self.distortion_scale {
-            scale.record(self.wrapper.is_some(), tensor_values(distortion.clone().inner())[0]);
-        }
-        let mut loss = distortion + volume;
-        let mut bits_per_value = None;
+        let mut loss = distortion.clone() + volume;
+        let mut bits = None;
         if let Some(lambda) = lambda {
             let steps = steps.expect("the rate needs the quantization steps");
-            let bpp = self.mean_bits(&attributes, &tracked, &steps, mask_gate, &masks)?;
-            bits_per_value = Some(tensor_values(bpp.clone().inner())[0]);
+            let side = self.side_bits(&masks)?;
+            let bpp = self.mean_bits(&attributes, &tracked, &steps, mask_gate, masks.clone(), side);
+            bits = Some(bpp.clone().inner());
             loss = loss + bpp * (lambda * self.lambda_factor());
         }
         let grads = loss.backward();
-        let loss_value = tensor_values(loss.inner())[0];
+        // The step's one read-back: its scalars.
+        let zero = || Tensor::<1>::zeros([1], &device);
+        let scalars =
+            [loss.inner(), distortion.inner(), bits.clone().unwrap_or_else(zero), mse, kept_count, masks.sum()];
+        let [loss_value, distortion_value, bits_value, mse, kept, open] =
+            tensor_values(Tensor::cat(scalars.to_vec(), 0)).try_into().expect("six scalars");
+        if kept == 0.0 {
+            bail!("no anchor gives a visible Gaussian at iteration {}", self.iteration);
+        }
         if !loss_value.is_finite() {
             bail!("anchor training diverged at iteration {}: the loss is {loss_value}", self.iteration);
+        }
+        if let Some(scale) = &mut self.distortion_scale {
+            scale.record(self.wrapper.is_some(), distortion_value);
         }
         if gathering && let (Some(growth), Some(screen)) = (&mut self.growth, probe.grad(&grads)) {
             // As 3DGS, in normalized device coordinates: d/d(ndc) = d/d(pixel) * size / 2.
             let ndc = 0.5 * camera.width.max(camera.height) as f32;
-            let screen: Vec<f32> = tensor_values(screen).into_iter().map(|g| g * ndc).collect();
-            let opacity: Vec<f32> = kept.iter().map(|&j| alpha_host[j as usize]).collect();
-            let rendered: Vec<usize> = kept.iter().map(|&j| j as usize).collect();
-            growth.stats.add(&rendered, &screen, &opacity);
+            growth.stats.add(screen.abs() * ndc, opacity);
         }
         let wrapper_grad = wrapper_params.map(|p| p.grad(&grads).unwrap_or_else(|| p.inner().zeros_like()));
         if let (Some(stage), Some(grad)) = (&mut self.wrapper, wrapper_grad)
@@ -524,8 +537,9 @@ impl AnchorTrainer {
         if self.growth.as_ref().is_some_and(|g| g.schedule.is_event(self.iteration)) {
             self.grow_and_prune();
         }
-        let psnr = -10.0 * tensor_values(mse)[0].log10();
-        Ok(AnchorStep { loss: loss_value, psnr, gaussians: m, bits_per_value, open_masks })
+        let psnr = -10.0 * mse.log10();
+        let bits_per_value = bits.map(|_| bits_value);
+        Ok(AnchorStep { loss: loss_value, psnr, gaussians: kept as usize, bits_per_value, open_masks: open as usize })
     }
 
     pub fn device(&self) -> Device {
@@ -551,7 +565,7 @@ impl AnchorTrainer {
             features: rows(0),
             scaling: scaling.chunks_exact(6).map(|c| [c[0], c[1], c[2], c[3], c[4], c[5]]).collect(),
             offsets: rows(2),
-            masks: self.open_masks(),
+            masks: tensor_values(self.open_masks()).into_iter().map(|m| m > 0.5).collect(),
             opacity: mlp_of(&self.params[3..7]),
             color: mlp_of(&self.params[7..11]),
             covariance: mlp_of(&self.params[11..15]),

@@ -32,7 +32,27 @@ pub(super) fn side_bits(voxels: &[[u32; 3]], depth: u8, masks: &[bool], k: usize
     Ok((position_bits as f64 / open.len() as f64 + mask_bits) as f32)
 }
 
+/// Steps between countings of the side bits: they change only as anchors shut or grow, and
+/// counting them reads every mask back and codes the open anchors' positions on the host.
+const SIDE_BITS_EVERY: u32 = 100;
+
 impl AnchorTrainer {
+    /// The side bits of an open anchor under `masks` [N, K] ([`side_bits`]), counted again
+    /// every [`SIDE_BITS_EVERY`] steps and after each growth event; 0 without a placement.
+    pub(super) fn side_bits(&mut self, masks: &Tensor<2>) -> Result<f32, OctreeError> {
+        let (iteration, k) = (self.iteration, self.shape[2]);
+        let Some(placement) = &mut self.placement else { return Ok(0.0) };
+        match placement.side_bits {
+            Some((counted, bits)) if iteration < counted + SIDE_BITS_EVERY => Ok(bits),
+            _ => {
+                let open: Vec<bool> = tensor_values(masks.clone()).into_iter().map(|m| m > 0.5).collect();
+                let bits = side_bits(&placement.voxels, placement.grid.depth, &open, k)?;
+                placement.side_bits = Some((iteration, bits));
+                Ok(bits)
+            }
+        }
+    }
+
     /// Learns a factor on each group's quantization step (features, scaling, offsets) while the
     /// rate term is on: the rate pulls steps up, the distortion of the noisy values down
     /// (HAC's adaptive quantization, one factor per group for the whole scene, which the
@@ -81,8 +101,8 @@ impl AnchorTrainer {
         })
     }
 
-    /// Mean bits per stored value: features and scaling of every anchor with an open mask, and
-    /// with a placement its position and masks ([`side_bits`]), offsets of every open mask,
+    /// Mean bits per stored value: features and scaling of every anchor with an open mask (of
+    /// `masks` [N, K]), and `side` bits for its position and masks ([`Self::side_bits`]), offsets of every open mask,
     /// over all N x (F + 6 + 3K) values. Both are gated so that their bits reach the masks: an
     /// offset's through its own mask, an anchor's own bits through the mean of its masks
     /// (HAC++'s adaptive anchor mask), so that the rate can shut an anchor whose Gaussians are
@@ -94,8 +114,9 @@ impl AnchorTrainer {
         tracked: &[Tensor<2>],
         steps: &[Tensor<2>; 3],
         gate: Tensor<2>,
-        masks: &[bool],
-    ) -> Result<Tensor<1>, OctreeError> {
+        masks: Tensor<2>,
+        side: f32,
+    ) -> Tensor<1> {
         let [n, f, k] = self.shape;
         let widths = [f, 6, 3 * k];
         let values = predicted_values(f, k);
@@ -112,8 +133,7 @@ impl AnchorTrainer {
             }
             None => (tracked[RATE_MODEL + 2 * j].clone(), tracked[RATE_MODEL + 2 * j + 1].clone()),
         };
-        let anchor_open: Vec<f32> = masks.chunks_exact(k).map(|m| f32::from(u8::from(m.iter().any(|&o| o)))).collect();
-        let anchor_open = host_tensor(&anchor_open, [n, 1], &self.positions.device()).autodiff();
+        let anchor_open = masks.max_dim(1).autodiff();
         // Straight through: 1 or 0 forward (any mask open), the masks' mean backward.
         let share = gate.clone().mean_dim(1);
         let anchor_gate = share.clone() - share.detach() + anchor_open;
@@ -127,12 +147,8 @@ impl AnchorTrainer {
             None => factorized_bits(attributes[2].clone().reshape([n * k, 3]), mean, scale, steps[2].clone()),
         };
         let offsets = (offsets.sum_dim(1).reshape([n, k]) * gate).sum_dim(1);
-        let side = match &self.placement {
-            Some(p) => side_bits(&p.voxels, p.grid.depth, masks, k)?,
-            None => 0.0,
-        };
         let total = ((features + scaling).add_scalar(side) * anchor_gate + offsets).sum();
-        Ok(total / self.rated_values() as f32)
+        total / self.rated_values() as f32
     }
 }
 
@@ -168,12 +184,13 @@ mod tests {
     }
 
     /// The mean bits of `trainer`'s model and their gradient on each mask logit.
-    fn bits_and_mask_gradients(trainer: &AnchorTrainer) -> (f32, Vec<f32>) {
+    fn bits_and_mask_gradients(trainer: &mut AnchorTrainer) -> (f32, Vec<f32>) {
         let tracked: Vec<Tensor<2>> = trainer.params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
         let steps = trainer.step_tensors(&tracked).unwrap();
         let masks = trainer.open_masks();
-        let gate = mask_gate(tracked[MASK_LOGITS].clone(), &masks);
-        let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, &masks).unwrap();
+        let gate = mask_gate(tracked[MASK_LOGITS].clone(), masks.clone());
+        let side = trainer.side_bits(&masks).unwrap();
+        let bits = trainer.mean_bits(&tracked[..3], &tracked, &steps, gate, masks, side);
         let value = tensor_values(bits.clone().inner())[0];
         let grads = bits.backward();
         (value, tensor_values(tracked[MASK_LOGITS].grad(&grads).unwrap()))
@@ -190,7 +207,7 @@ mod tests {
         model.offsets.copy_within(0..3 * k, 3 * k);
         model.features[..f].fill(0.0);
         model.features[f..2 * f].fill(30.0);
-        let (_, g) = bits_and_mask_gradients(&rated_trainer(&model, &data));
+        let (_, g) = bits_and_mask_gradients(&mut rated_trainer(&model, &data));
         let (cheap, costly) = (g[0] + g[1], g[2] + g[3]);
         assert!(cheap > 0.0, "shutting a mask saves bits: {:?}", &g[..4]);
         assert!(costly > 2.0 * cheap, "the costly features' bits do not reach the masks: {:?}", &g[..4]);
@@ -203,11 +220,11 @@ mod tests {
         let k = 3;
         let (data, model, grid) = small_model(6, 4, k);
         let voxels = grid_coordinates(&model.positions, &grid).unwrap();
-        let unplaced = rated_trainer(&model, &data);
+        let mut unplaced = rated_trainer(&model, &data);
         let rated = unplaced.rated_values();
-        let (plain, plain_grad) = bits_and_mask_gradients(&unplaced);
+        let (plain, plain_grad) = bits_and_mask_gradients(&mut unplaced);
         let (placed, placed_grad) =
-            bits_and_mask_gradients(&rated_trainer(&model, &data).with_placement(grid, voxels.clone()));
+            bits_and_mask_gradients(&mut rated_trainer(&model, &data).with_placement(grid, voxels.clone()));
         // Every mask is open at the start: each anchor costs its octree share, masks nothing.
         let side = side_bits(&voxels, grid.depth, &vec![true; voxels.len() * k], k).unwrap();
         assert!(side > 1.0, "an anchor's position costs bits: {side}");

@@ -8,7 +8,7 @@ use burn::tensor::{DType, TensorData};
 use burn_cubecl::CubeBackend;
 use burn_cubecl::cubecl;
 use burn_cubecl::cubecl::prelude::*;
-use burn_cubecl::kernel::{into_contiguous, slice};
+use burn_cubecl::kernel::{cast, into_contiguous, slice};
 use burn_cubecl::ops::into_data_sync;
 use burn_cubecl::ops::numeric::{empty_device_dtype, zeros_client};
 use burn_cubecl::tensor::CubeTensor;
@@ -19,6 +19,7 @@ use super::sort::{
     blocks, cube_dim, element_index, empty_u32, exclusive_scan, gather, grid, iota, key_bits, radix_sort,
 };
 use crate::train::splat_op::{SplatTensors, SplatView};
+use pwgs_render::raster::Window;
 
 /// The Gaussians' parameters, contiguous.
 pub struct Inputs {
@@ -144,16 +145,64 @@ fn tile_ranges(tile_keys: &Tensor<u32>, tile_start: &mut Tensor<u32>, tile_end: 
     }
 }
 
-/// Projects, sorts and bins the Gaussians for `view`. Reads one number back from the device:
-/// how many list entries there are, to size their buffers.
-pub fn bin(inputs: &Inputs, view: &SplatView) -> Binned {
+/// The windows of `view.window` whose lists fit `view.entry_budget`, binned, in order: the whole
+/// window when it fits, else its two halves (split on a tile edge across its longer side in
+/// tiles), each in turn; a single tile is never split, so its list may hold up to every
+/// Gaussian. Every window's pixels are the same as in a render of the whole view
+/// (its tiles are the same tiles, their lists the same lists); `output` is the window of the
+/// image-sized arrays they are blended into.
+pub fn windows(inputs: &Inputs, view: &SplatView, output: Window, each: &mut impl FnMut(Binned)) {
+    if let Some(binned) = bin(inputs, view, output) {
+        return each(binned);
+    }
+    let w = view.window;
+    let (tiles_x, tiles_y) = w.tile_counts();
+    let halves = if tiles_y >= tiles_x {
+        let top = tiles_y / 2 * TILE_SIZE;
+        [Window { height: top, ..w }, Window { y0: w.y0 + top, height: w.height - top, ..w }]
+    } else {
+        let left = tiles_x / 2 * TILE_SIZE;
+        [Window { width: left, ..w }, Window { x0: w.x0 + left, width: w.width - left, ..w }]
+    };
+    for window in halves {
+        windows(inputs, &SplatView { window, ..*view }, output, each);
+    }
+}
+
+/// How many list entries the Gaussians' `tile_counts` make, or `None` when over `budget`.
+/// Where the u32 sum could wrap (Gaussians x tiles of 2^32 or more), the
+/// counts are first summed in f32, which is exact enough to compare with the budget.
+fn entry_count(tile_counts: &CubeTensor, offsets: &CubeTensor, n: u32, tiles: u32, budget: u64) -> Option<u32> {
+    if u64::from(n) * u64::from(tiles) >= 1 << 32 {
+        let sum = CubeBackend::float_sum(cast(tile_counts.clone(), DType::F32));
+        let sum = into_data_sync(sum).convert::<f32>().try_into_vec::<f32>().expect("an f32 sum")[0];
+        if f64::from(sum) > budget as f64 {
+            return None;
+        }
+    }
+    let total = list_length(offsets, n);
+    (u64::from(total) <= budget).then_some(total)
+}
+
+/// The last of the n + 1 `offsets`: the lists' length.
+fn list_length(offsets: &CubeTensor, n: u32) -> u32 {
+    let last = n as usize..n as usize + 1;
+    let total = into_data_sync(slice(offsets.clone(), std::slice::from_ref(&last)));
+    total.convert::<u32>().try_into_vec::<u32>().expect("u32 entry count")[0]
+}
+
+/// Projects, sorts and bins the Gaussians for `view`, to be blended into the `output` window
+/// of the image-sized arrays; `None` when the lists would hold more than `view.entry_budget`
+/// entries and the window has more than one tile. Reads one number back from the device: how
+/// many list entries there are, to size their buffers.
+fn bin(inputs: &Inputs, view: &SplatView, output: Window) -> Option<Binned> {
     let like = &inputs.means;
     let client = like.client.clone();
     let n = inputs.count;
     let window = view.window;
     let tiles = window.tile_counts();
     let view_t = upload_f32(like, view_values(view));
-    let frame = upload_u32(like, frame_values(window, inputs.sh_coeffs));
+    let frame = upload_u32(like, frame_values(window, inputs.sh_coeffs, output));
     let settings = upload_f32(like, blend_values(&view.options));
 
     let splats = empty_f32(like, &[(n * SPLAT_FLOATS).max(1) as usize]);
@@ -179,9 +228,12 @@ pub fn bin(inputs: &Inputs, view: &SplatView) -> Binned {
     );
     let (_, order) = radix_sort(depth_keys, iota(like, n), n, u32::BITS);
     let offsets = exclusive_scan(&gather(&tile_counts, &order, n), n + 1);
-    let last = n as usize..n as usize + 1;
-    let total = into_data_sync(slice(offsets.clone(), std::slice::from_ref(&last)));
-    let total = total.convert::<u32>().try_into_vec::<u32>().expect("u32 entry count")[0];
+    let total = match entry_count(&tile_counts, &offsets, n, tiles.0 * tiles.1, view.entry_budget) {
+        Some(total) => total,
+        None if tiles.0 * tiles.1 > 1 => return None,
+        // One tile holds at most one entry a Gaussian: its u32 count is exact.
+        None => list_length(&offsets, n),
+    };
 
     let tile_keys = empty_u32(like, total as usize);
     let slots = empty_u32(like, total as usize);
@@ -214,7 +266,7 @@ pub fn bin(inputs: &Inputs, view: &SplatView) -> Binned {
         tile_end.clone().into_tensor_arg(),
         total,
     );
-    Binned {
+    Some(Binned {
         view: view_t,
         frame,
         settings,
@@ -228,5 +280,5 @@ pub fn bin(inputs: &Inputs, view: &SplatView) -> Binned {
         entry_slot,
         tile_start,
         tile_end,
-    }
+    })
 }

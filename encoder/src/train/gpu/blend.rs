@@ -44,6 +44,14 @@ fn tile_pixel(frame: &Tensor<u32>) -> (u32, u32, bool) {
     (lx, ly, lx < frame[w + 2] && ly < frame[w + 3])
 }
 
+/// Where window pixel (lx, ly) sits in the image-sized arrays: a window rendered on its own
+/// fills them whole, one of several windows of a view ([`super::bins::windows`]) its part.
+#[cube]
+fn output_index(frame: &Tensor<u32>, lx: u32, ly: u32) -> usize {
+    let o = frame_at::OUTPUT as usize;
+    ((ly + frame[o + 1]) * frame[o + 2] + lx + frame[o]) as usize
+}
+
 /// Copies the splat of list entry `k` (if below `end`) into this unit's shared slot.
 #[cube]
 fn load_splat(
@@ -160,7 +168,7 @@ pub fn blend_forward(
         base += BLOCK;
     }
     if inside {
-        let p = (ly * frame[w + 2] + lx) as usize;
+        let p = output_index(frame, lx, ly);
         image[p * 3] = r + trans * limits[BACKGROUND];
         image[p * 3 + 1] = g + trans * limits[BACKGROUND + 1];
         image[p * 3 + 2] = b + trans * limits[BACKGROUND + 2];
@@ -219,7 +227,7 @@ pub fn blend_backward(
     let (x, y) = (frame[w] + lx, frame[w + 1] + ly);
     let tile = (CUBE_POS_Y * frame[frame_at::TILES_X as usize] + CUBE_POS_X) as usize;
     let start = tile_start[tile];
-    let p = (ly * frame[w + 2] + lx) as usize;
+    let p = output_index(frame, lx, ly);
 
     let mut t_final = 1.0f32.runtime();
     let mut own_last = 0u32.runtime();

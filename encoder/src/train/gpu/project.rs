@@ -102,12 +102,16 @@ pub mod frame_at {
     pub const TILES_Y: u32 = 5;
     /// SH coefficients per channel of the SH tensor (all of them rendered).
     pub const SH_COEFFS: u32 = 6;
-    pub const LEN: usize = 7;
+    /// The window's place in the image-sized arrays the blend kernels fill: x and y offset,
+    /// and the arrays' width.
+    pub const OUTPUT: u32 = 7;
+    pub const LEN: usize = 10;
 }
 
-pub fn frame_values(window: Window, sh_coeffs: u32) -> Vec<u32> {
+pub fn frame_values(window: Window, sh_coeffs: u32, output: Window) -> Vec<u32> {
     let (tiles_x, tiles_y) = window.tile_counts();
-    vec![window.x0, window.y0, window.width, window.height, tiles_x, tiles_y, sh_coeffs]
+    let (x, y) = (window.x0 - output.x0, window.y0 - output.y0);
+    vec![window.x0, window.y0, window.width, window.height, tiles_x, tiles_y, sh_coeffs, x, y, output.width]
 }
 
 /// Smallest alpha, largest alpha, transmittance stop and background, as the blend kernels

@@ -103,7 +103,8 @@ fn row_dot(m: &Array<f32>, r: u32, x: f32, y: f32, z: f32) -> f32 {
 }
 
 /// One unit per depth rank: the Gaussian of that rank gets the gradient of its parameters
-/// (zeros when it was culled).
+/// (zeros when it was culled), the norm of its screen-space gradient, and that gradient
+/// (`screen_xy`, [N, 2]: a view rendered in windows sums it over them before the norm).
 #[cube(launch)]
 #[allow(clippy::too_many_arguments)]
 pub fn project_backward(
@@ -124,6 +125,7 @@ pub fn project_backward(
     grad_logits: &mut Tensor<f32>,
     grad_sh: &mut Tensor<f32>,
     grad_screen: &mut Tensor<f32>,
+    screen_xy: &mut Tensor<f32>,
     count: u32,
 ) {
     let rank = element_index();
@@ -144,6 +146,8 @@ pub fn project_backward(
         grad_sh[(g * sh_coeffs * 3 + k) as usize] = 0.0;
     }
     grad_screen[g as usize] = 0.0;
+    screen_xy[(g * 2) as usize] = 0.0;
+    screen_xy[(g * 2 + 1) as usize] = 0.0;
     if tile_counts[g as usize] == 0 {
         terminate!();
     }
@@ -160,6 +164,8 @@ pub fn project_backward(
     }
     let (vmx, vmy) = (v[0], v[1]);
     grad_screen[g as usize] = (vmx * vmx + vmy * vmy).sqrt();
+    screen_xy[(g * 2) as usize] = vmx;
+    screen_xy[(g * 2 + 1) as usize] = vmy;
 
     // The forward values, as the projection kernel computes them.
     let opacity = sigmoid(logits[g as usize]);
