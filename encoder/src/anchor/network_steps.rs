@@ -13,7 +13,7 @@
 use std::ops::RangeInclusive;
 
 use anyhow::Result;
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use pwgs_codec::anchor::Mlp;
 use pwgs_codec::stream::anchor::{QuantizedAnchors, QuantizedMlp};
 use pwgs_codec::stream::header::Header;
@@ -22,6 +22,7 @@ use pwgs_dataset::scene::View;
 use pwgs_render::raster::{RenderOptions, render};
 
 use super::train::pixel_loss;
+use crate::train::views::hwc_tensor;
 
 /// Weight step exponents the Gaussian MLPs are tried at, finest first; biases take a step
 /// 2^-1 finer (they are few, and shift every Gaussian of an anchor at once). 2^-11 was the
@@ -95,7 +96,7 @@ pub fn choose_mlp_steps(
 ) -> Result<Vec<StepCandidate>> {
     let device = Device::flex();
     let picked = spaced(objective.views, CHOICE_VIEWS);
-    let targets: Vec<Tensor<3>> = picked.iter().map(|v| hwc_tensor(&v.image.data, v, &device)).collect();
+    let targets: Vec<Tensor<3>> = picked.iter().map(|v| hwc_tensor(&v.image, &device)).collect();
     let mut candidates = Vec::new();
     for e in WEIGHT_EXPONENTS {
         set_mlp_steps(content, networks, e);
@@ -106,7 +107,7 @@ pub fn choose_mlp_steps(
             .zip(&targets)
             .map(|(v, target)| {
                 let image = render(&model.gaussians_for(&v.camera), &v.camera, &objective.options);
-                let loss = pixel_loss(hwc_tensor(&image.data, v, &device), target.clone());
+                let loss = pixel_loss(hwc_tensor(&image, &device), target.clone());
                 loss.into_data().convert::<f64>().try_into_vec::<f64>().expect("a scalar")[0]
             })
             .sum::<f64>()
@@ -128,10 +129,4 @@ fn set_mlp_steps(content: &mut QuantizedAnchors, networks: [&Mlp; 3], e: i8) {
 fn spaced(views: &[View], n: usize) -> Vec<&View> {
     let stride = views.len().div_ceil(n.max(1)).max(1);
     views.iter().step_by(stride).collect()
-}
-
-/// Interleaved RGB of `view`'s size as an [H, W, 3] tensor.
-fn hwc_tensor(rgb: &[f32], view: &View, device: &Device) -> Tensor<3> {
-    let (w, h) = (view.image.width as usize, view.image.height as usize);
-    Tensor::from_data(TensorData::new(rgb.to_vec(), [h, w, 3]), device)
 }

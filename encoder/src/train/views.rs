@@ -28,9 +28,10 @@ pub struct TrainViews {
     device: Device,
 }
 
-fn upload(image: RgbImage, device: &Device) -> Tensor<3> {
+/// An image as an [H, W, 3] tensor on `device`.
+pub(crate) fn hwc_tensor(image: &RgbImage, device: &Device) -> Tensor<3> {
     let (w, h) = (image.width as usize, image.height as usize);
-    Tensor::from_data(TensorData::new(image.data, [h, w, 3]), device)
+    Tensor::from_data(TensorData::new(image.data.clone(), [h, w, 3]), device)
 }
 
 impl TrainViews {
@@ -68,7 +69,7 @@ impl TrainViews {
             Target::Resident(t) => (**t).clone(),
             Target::Host(image) => {
                 let bytes = image.data.len() * size_of::<f32>();
-                let t = upload(image.clone(), &self.device);
+                let t = hwc_tensor(image, &self.device);
                 if self.resident_bytes + bytes <= self.budget {
                     self.targets[i] = Target::Resident(Box::new(t.clone()));
                     self.resident_bytes += bytes;
