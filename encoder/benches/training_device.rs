@@ -13,7 +13,9 @@
 //! features), steps per second after it and the device memory reserved. Run with `cargo bench
 //! -p pwgs-encoder --bench training_device [--features gpu] [-- --quick] [--gpu-steps N]
 //! [--scene DIR --downscale N]` (`--quick`: the smallest case of each stage; `--gpu-steps`
-//! replaces every case's GPU step count: 1 checks the GPU path on a software rasterizer).
+//! replaces every case's GPU step count: 1 checks the GPU path on a software rasterizer;
+//! `--gpu-only` skips the CPU device and `--crops-only` stage 2 on whole images, for a short
+//! lease of a GPU machine).
 //! Timings depend on the machine: report them with it.
 //!
 //! `-- --memory` instead measures, on the GPU device only, the memory one stage-1 step of each
@@ -37,14 +39,6 @@ use pwgs_encoder::wrapper::throughput::stage_two_throughput;
 struct StageTwo {
     size: (u32, u32),
     crop: usize,
-    cpu_steps: usize,
-    gpu_steps: usize,
-}
-
-/// A stage-1 measurement: a scene and the steps timed on the CPU and on a GPU.
-struct StageOne {
-    name: String,
-    data: Dataset,
     cpu_steps: usize,
     gpu_steps: usize,
 }
@@ -136,13 +130,39 @@ fn memory_scaling(device: &TrainingDevice, dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Stage-1 steps of both bases on `data` on each device, a line each.
+fn stage_one(
+    devices: &[TrainingDevice],
+    name: &str,
+    data: &Dataset,
+    steps_of: &dyn Fn(&TrainingDevice, usize, usize) -> usize,
+) {
+    let image = &data.train[0].image;
+    for device in devices {
+        let steps = steps_of(device, 1, 30);
+        for (base, run) in [("plain", plain_steps as StageOneSteps), ("anchor", anchor_steps)] {
+            match run(data, steps, device) {
+                Ok((count, first, rate)) => println!(
+                    "  {}: stage 1 {base} on {name} ({}x{}, {count} {}): first step {first:.2} s, {rate:.2} it/s over {steps}, device memory reserved {}",
+                    device.name,
+                    image.width,
+                    image.height,
+                    if base == "plain" { "Gaussians" } else { "anchors" },
+                    memory(device)
+                ),
+                Err(e) => println!("  {}: stage 1 {base} on {name}: failed: {e:#}", device.name),
+            }
+        }
+    }
+}
+
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let value = |flag: &str| args.iter().position(|a| a == flag).and_then(|i| args.get(i + 1));
     let quick = args.iter().any(|a| a == "--quick");
     let gpu_steps: Option<usize> = value("--gpu-steps").and_then(|n| n.parse().ok());
     let allow_software = std::env::var("PWGS_ALLOW_SOFTWARE_GPU").is_ok_and(|v| v == "1");
-    let mut devices = vec![TrainingDevice::cpu()];
+    let mut devices = if args.iter().any(|a| a == "--gpu-only") { vec![] } else { vec![TrainingDevice::cpu()] };
     match TrainingDevice::gpu(allow_software) {
         Ok(gpu) => devices.push(gpu),
         Err(e) => println!("no GPU device: {e:#}"),
@@ -154,47 +174,40 @@ fn main() -> Result<()> {
         println!("device: {}", gpu.name);
         return memory_scaling(gpu, tmp.path());
     }
-    let mut stage_one = Vec::new();
+    for device in &devices {
+        println!("device: {}", device.name);
+    }
+    let steps_of = |device: &TrainingDevice, cpu: usize, gpu: usize| {
+        if device.gpu { gpu_steps.unwrap_or(gpu) } else { cpu }
+    };
+    // Each scene is made (or loaded) just before its cases run, so a run cut short by a time
+    // limit has printed every case it finished.
     let sizes: &[((u32, u32), usize)] =
         if quick { &[((1008, 756), 500_000)] } else { &[((1008, 756), 500_000), ((1600, 1063), 1_000_000)] };
+    let mut scenes: Vec<(String, Box<dyn Fn() -> Result<Dataset>>)> = Vec::new();
     for (i, &(size, points)) in sizes.iter().enumerate() {
-        let data = generated(&tmp.path().join(i.to_string()), size, points, 8)?;
+        let dir = tmp.path().join(i.to_string());
         let name = format!("generated {}x{}, {points} points", size.0, size.1);
-        stage_one.push(StageOne { name, data, cpu_steps: 1, gpu_steps: 30 });
+        scenes.push((name, Box::new(move || generated(&dir, size, points, 8))));
     }
     if let Some(scene) = value("--scene").map(PathBuf::from) {
         let downscale = value("--downscale").and_then(|n| n.parse().ok()).unwrap_or(1);
-        let data = load_scene(&scene, &LoadOptions { downscale, ..Default::default() })?;
-        stage_one.push(StageOne { name: scene.display().to_string(), data, cpu_steps: 1, gpu_steps: 30 });
+        let load = move || Ok(load_scene(&scene, &LoadOptions { downscale, ..Default::default() })?);
+        scenes.push((value("--scene").cloned().unwrap_or_default(), Box::new(load)));
+    }
+    // The given scene first, then stage 2, then the generated scenes (slowest to make).
+    let (generated_scenes, given) = scenes.split_at(scenes.len() - usize::from(value("--scene").is_some()));
+    for (name, make) in given {
+        stage_one(&devices, name, &make()?, &steps_of);
     }
     let mut stage_two = vec![StageTwo { size: (1008, 756), crop: 128, cpu_steps: 3, gpu_steps: 50 }];
-    if !quick {
+    if !quick && !args.iter().any(|a| a == "--crops-only") {
         stage_two.push(StageTwo { size: (1008, 756), crop: 1008, cpu_steps: 1, gpu_steps: 20 });
         stage_two.push(StageTwo { size: (1600, 1063), crop: 1600, cpu_steps: 0, gpu_steps: 10 });
     }
-
-    for device in &devices {
-        println!("device: {}", device.name);
-        let steps_of = |cpu: usize, gpu: usize| if device.gpu { gpu_steps.unwrap_or(gpu) } else { cpu };
-        for case in &stage_one {
-            let steps = steps_of(case.cpu_steps, case.gpu_steps);
-            let image = &case.data.train[0].image;
-            for (base, run) in [("plain", plain_steps as StageOneSteps), ("anchor", anchor_steps)] {
-                match run(&case.data, steps, device) {
-                    Ok((count, first, rate)) => println!(
-                        "  stage 1 {base} on {} ({}x{}, {count} {}): first step {first:.2} s, {rate:.2} it/s over {steps}, device memory reserved {}",
-                        case.name,
-                        image.width,
-                        image.height,
-                        if base == "plain" { "Gaussians" } else { "anchors" },
-                        memory(device)
-                    ),
-                    Err(e) => println!("  stage 1 {base} on {}: failed: {e:#}", case.name),
-                }
-            }
-        }
-        for case in &stage_two {
-            let steps = steps_of(case.cpu_steps, case.gpu_steps);
+    for case in &stage_two {
+        for device in &devices {
+            let steps = steps_of(device, case.cpu_steps, case.gpu_steps);
             if steps == 0 {
                 continue;
             }
@@ -206,14 +219,18 @@ fn main() -> Result<()> {
             };
             match stage_two_throughput(device, case.size, case.crop, steps) {
                 Ok(t) => println!(
-                    "  stage 2 (f + WD, no splat) {w}x{h}, {what}: first step {:.2} s, {:.2} steps/s over {steps}, device memory reserved {}",
+                    "  {}: stage 2 (f + WD, no splat) {w}x{h}, {what}: first step {:.2} s, {:.2} steps/s over {steps}, device memory reserved {}",
+                    device.name,
                     t.first_step_seconds,
                     t.steps_per_second,
                     t.bytes_reserved.map_or("not reported".to_string(), mib)
                 ),
-                Err(e) => println!("  stage 2 {w}x{h}, {what}: failed: {e:#}"),
+                Err(e) => println!("  {}: stage 2 {w}x{h}, {what}: failed: {e:#}", device.name),
             }
         }
+    }
+    for (name, make) in generated_scenes {
+        stage_one(&devices, name, &make()?, &steps_of);
     }
     Ok(())
 }
