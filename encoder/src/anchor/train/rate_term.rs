@@ -83,21 +83,22 @@ impl AnchorTrainer {
     }
 
     /// The three groups' steps for this step, as [1, 1] tensors: learned (with gradients) while
-    /// the rate term is on, else constants.
+    /// the rate term is on, the learned factors as constants before it (computed on the device:
+    /// reading them back would wait for the GPU at every step), else the base steps.
     pub(super) fn step_tensors(&self, tracked: &[Tensor<2>]) -> Option<[Tensor<2>; 3]> {
         let (base, _) = self.noise?;
         let base = [base.feature, base.scaling, base.offset];
         let device = self.positions.device();
-        Some(match (self.learned_steps, self.lambda()) {
-            (Some(i), Some(_)) => {
-                let factors = tracked[i].clone().clamp(-LOG_STEP_RANGE, LOG_STEP_RANGE).exp();
+        Some(match self.learned_steps {
+            Some(i) => {
+                let source = match self.lambda() {
+                    Some(_) => tracked[i].clone(),
+                    None => self.params[i].clone().autodiff(),
+                };
+                let factors = source.clamp(-LOG_STEP_RANGE, LOG_STEP_RANGE).exp();
                 std::array::from_fn(|g| factors.clone().slice([0..1, g..g + 1]) * base[g])
             }
-            _ => {
-                let now = self.steps().expect("noise is on");
-                let steps = [now.feature, now.scaling, now.offset];
-                std::array::from_fn(|g| host_tensor(&[steps[g]], [1, 1], &device).autodiff())
-            }
+            None => std::array::from_fn(|g| host_tensor(&[base[g]], [1, 1], &device).autodiff()),
         })
     }
 
