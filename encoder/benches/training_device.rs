@@ -130,6 +130,9 @@ fn memory_scaling(device: &TrainingDevice, dir: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Makes (or loads) a stage-1 scene when its cases are due.
+type MakeScene = Box<dyn Fn() -> Result<Dataset>>;
+
 /// Stage-1 steps of both bases on `data` on each device, a line each.
 fn stage_one(
     devices: &[TrainingDevice],
@@ -184,7 +187,7 @@ fn main() -> Result<()> {
     // limit has printed every case it finished.
     let sizes: &[((u32, u32), usize)] =
         if quick { &[((1008, 756), 500_000)] } else { &[((1008, 756), 500_000), ((1600, 1063), 1_000_000)] };
-    let mut scenes: Vec<(String, Box<dyn Fn() -> Result<Dataset>>)> = Vec::new();
+    let mut scenes: Vec<(String, MakeScene)> = Vec::new();
     for (i, &(size, points)) in sizes.iter().enumerate() {
         let dir = tmp.path().join(i.to_string());
         let name = format!("generated {}x{}, {points} points", size.0, size.1);
