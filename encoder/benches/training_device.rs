@@ -15,7 +15,9 @@
 //! [--scene DIR --downscale N]` (`--quick`: the smallest case of each stage; `--gpu-steps`
 //! replaces every case's GPU step count: 1 checks the GPU path on a software rasterizer;
 //! `--gpu-only` skips the CPU device and `--crops-only` stage 2 on whole images, for a short
-//! lease of a GPU machine).
+//! lease of a GPU machine; `--cases plain,anchor,stage2,generated` runs only the cases named:
+//! the bases' stage 1, stage 2's networks, and the generated scenes beside `--scene`, for
+//! `scripts/profile_kernels.sh`).
 //! Timings depend on the machine: report them with it.
 //!
 //! `-- --memory` instead measures, on the GPU device only, the memory one stage-1 step of each
@@ -136,14 +138,17 @@ type MakeScene = Box<dyn Fn() -> Result<Dataset>>;
 /// Stage-1 steps of both bases on `data` on each device, a line each.
 fn stage_one(
     devices: &[TrainingDevice],
-    name: &str,
-    data: &Dataset,
+    (name, data): (&str, &Dataset),
+    cases: &[&str],
     steps_of: &dyn Fn(&TrainingDevice, usize, usize) -> usize,
 ) {
     let image = &data.train[0].image;
     for device in devices {
         let steps = steps_of(device, 1, 30);
         for (base, run) in [("plain", plain_steps as StageOneSteps), ("anchor", anchor_steps)] {
+            if !cases.contains(&base) {
+                continue;
+            }
             match run(data, steps, device) {
                 Ok((count, first, rate)) => println!(
                     "  {}: stage 1 {base} on {name} ({}x{}, {count} {}): first step {first:.2} s, {rate:.2} it/s over {steps}, device memory reserved {}",
@@ -180,6 +185,8 @@ fn main() -> Result<()> {
     for device in &devices {
         println!("device: {}", device.name);
     }
+    let cases: Vec<&str> =
+        value("--cases").map_or(vec!["plain", "anchor", "stage2", "generated"], |v| v.split(',').collect());
     let steps_of = |device: &TrainingDevice, cpu: usize, gpu: usize| {
         if device.gpu { gpu_steps.unwrap_or(gpu) } else { cpu }
     };
@@ -201,10 +208,13 @@ fn main() -> Result<()> {
     // The given scene first, then stage 2, then the generated scenes (slowest to make).
     let (generated_scenes, given) = scenes.split_at(scenes.len() - usize::from(value("--scene").is_some()));
     for (name, make) in given {
-        stage_one(&devices, name, &make()?, &steps_of);
+        stage_one(&devices, (name, &make()?), &cases, &steps_of);
     }
-    let mut stage_two = vec![StageTwo { size: (1008, 756), crop: 128, cpu_steps: 3, gpu_steps: 50 }];
-    if !quick && !args.iter().any(|a| a == "--crops-only") {
+    let mut stage_two = Vec::new();
+    if cases.contains(&"stage2") {
+        stage_two.push(StageTwo { size: (1008, 756), crop: 128, cpu_steps: 3, gpu_steps: 50 });
+    }
+    if cases.contains(&"stage2") && !quick && !args.iter().any(|a| a == "--crops-only") {
         stage_two.push(StageTwo { size: (1008, 756), crop: 1008, cpu_steps: 1, gpu_steps: 20 });
         stage_two.push(StageTwo { size: (1600, 1063), crop: 1600, cpu_steps: 0, gpu_steps: 10 });
     }
@@ -232,8 +242,8 @@ fn main() -> Result<()> {
             }
         }
     }
-    for (name, make) in generated_scenes {
-        stage_one(&devices, name, &make()?, &steps_of);
+    for (name, make) in generated_scenes.iter().filter(|_| cases.contains(&"generated")) {
+        stage_one(&devices, (name, &make()?), &cases, &steps_of);
     }
     Ok(())
 }

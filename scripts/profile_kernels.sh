@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Where a training step's GPU time goes: runs the `training_device` bench on the GPU alone with
+# CubeCL's per-kernel profiling (each kernel timed on the device, so the run is slower than
+# the bench's own figures), then lists the kernels by total time, with their launch counts.
+# First steps compile kernels: give enough steps that the steady state dominates.
+#
+#   scripts/profile_kernels.sh [bench options...]
+#   scripts/profile_kernels.sh --cases anchor --scene ../shared/scenes/fern --downscale 4 --gpu-steps 20
+#
+# BENCH names the bench binary (default: the newest `training_device` test-profile build in
+# $CARGO_TARGET_DIR or target/; build it with
+# `cargo test -p pwgs-encoder --features gpu --bench training_device --no-run`). LOG keeps
+# CubeCL's log (default: a temporary file); TOP kernels are listed (default 25).
+set -euo pipefail
+target=${CARGO_TARGET_DIR:-target}/debug/deps
+bench=${BENCH:-$(ls -t "$target"/training_device-* 2>/dev/null | grep -v '\.d$' | head -1)}
+[ -x "$bench" ] || { echo "no training_device bench binary (set BENCH, or build it: see the header)" >&2; exit 2; }
+log=${LOG:-$(mktemp)}
+CUBECL_DEBUG_OPTION=profile CUBECL_DEBUG_LOG=$log "$bench" --gpu-only "$@"
+# CubeCL's profile lines read "| 1.68ms | KernelName_hash | ...".
+grep -E '^\| [0-9.]+(ns|µs|ms|s) +\|' "$log" | awk -F'|' -v top="${TOP:-25}" '
+    {
+        t = $2; gsub(/ /, "", t); v = t + 0
+        if (t ~ /ns$/) v /= 1e6; else if (t ~ /µs$/) v /= 1e3; else if (t !~ /ms$/) v *= 1e3
+        name = $3; gsub(/^ +| +$/, "", name); sub(/_[0-9a-f]+$/, "", name)
+        total[name] += v; count[name]++; all += v
+    }
+    END {
+        printf "%12s %8s %7s  %s\n", "ms", "share", "calls", "kernel"
+        for (k in total) printf "%12.1f %7.1f%% %7d  %s\n", total[k], 100 * total[k] / all, count[k], k | "sort -rn | head -" top
+        close("sort -rn | head -" top)
+        printf "%12.1f %7s %7s  all kernels\n", all, "", ""
+    }'
