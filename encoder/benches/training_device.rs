@@ -24,7 +24,7 @@
 //! base reserves at 1600x1063 for two scene sizes, and extrapolates linearly to 1M Gaussians
 //! (plain) or 100k anchors (1M neural Gaussians), adding 300 views' images.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::Result;
@@ -132,9 +132,6 @@ fn memory_scaling(device: &TrainingDevice, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Makes (or loads) a stage-1 scene when its cases are due.
-type MakeScene = Box<dyn Fn() -> Result<Dataset>>;
-
 /// Stage-1 steps of both bases on `data` on each device, a line each.
 fn stage_one(
     devices: &[TrainingDevice],
@@ -190,25 +187,13 @@ fn main() -> Result<()> {
     let steps_of = |device: &TrainingDevice, cpu: usize, gpu: usize| {
         if device.gpu { gpu_steps.unwrap_or(gpu) } else { cpu }
     };
-    // Each scene is made (or loaded) just before its cases run, so a run cut short by a time
-    // limit has printed every case it finished.
-    let sizes: &[((u32, u32), usize)] =
-        if quick { &[((1008, 756), 500_000)] } else { &[((1008, 756), 500_000), ((1600, 1063), 1_000_000)] };
-    let mut scenes: Vec<(String, MakeScene)> = Vec::new();
-    for (i, &(size, points)) in sizes.iter().enumerate() {
-        let dir = tmp.path().join(i.to_string());
-        let name = format!("generated {}x{}, {points} points", size.0, size.1);
-        scenes.push((name, Box::new(move || generated(&dir, size, points, 8))));
-    }
-    if let Some(scene) = value("--scene").map(PathBuf::from) {
+    // The given scene first, then stage 2, then the generated scenes (slowest to make), each
+    // made just before its cases run: a run cut short by a time limit has printed every case
+    // it finished.
+    if let Some(scene) = value("--scene") {
         let downscale = value("--downscale").and_then(|n| n.parse().ok()).unwrap_or(1);
-        let load = move || Ok(load_scene(&scene, &LoadOptions { downscale, ..Default::default() })?);
-        scenes.push((value("--scene").cloned().unwrap_or_default(), Box::new(load)));
-    }
-    // The given scene first, then stage 2, then the generated scenes (slowest to make).
-    let (generated_scenes, given) = scenes.split_at(scenes.len() - usize::from(value("--scene").is_some()));
-    for (name, make) in given {
-        stage_one(&devices, (name, &make()?), &cases, &steps_of);
+        let data = load_scene(Path::new(scene), &LoadOptions { downscale, ..Default::default() })?;
+        stage_one(&devices, (scene, &data), &cases, &steps_of);
     }
     let mut stage_two = Vec::new();
     if cases.contains(&"stage2") {
@@ -242,8 +227,12 @@ fn main() -> Result<()> {
             }
         }
     }
-    for (name, make) in generated_scenes.iter().filter(|_| cases.contains(&"generated")) {
-        stage_one(&devices, (name, &make()?), &cases, &steps_of);
+    let sizes: &[((u32, u32), usize)] =
+        if quick { &[((1008, 756), 500_000)] } else { &[((1008, 756), 500_000), ((1600, 1063), 1_000_000)] };
+    for (i, &(size, points)) in sizes.iter().enumerate().filter(|_| cases.contains(&"generated")) {
+        let data = generated(&tmp.path().join(i.to_string()), size, points, 8)?;
+        let name = format!("generated {}x{}, {points} points", size.0, size.1);
+        stage_one(&devices, (&name, &data), &cases, &steps_of);
     }
     Ok(())
 }
