@@ -2,17 +2,19 @@
 # The comparison with the formats splat viewers ship (a benchmark, not a test): writes
 # SPZ, SOG and compressed PLY of one 3DGS PLY with PlayCanvas's splat-transform (installed
 # from npm into DIR/npm), converts each back to PLY with it, compresses the input with pwenc at
-# several qualities, and scores every one of them with `pwenc compare` against the input's own
-# renders on an orbit (the same cameras for all). Then `pwbench` writes DIR/report/report.md:
-# each format's size and scores, our curve, and each format against our curve at equal score.
+# several qualities (timing the encode and the decode), and scores every one of them with
+# `pwenc compare` against the input's own renders on three sets of views (the same cameras for
+# all): the orbit, an orbit from below and one closer in. Then `pwbench` writes
+# DIR/report-SET/report.md for each set: each format's size and scores, our curve, and each
+# format against our curve at equal score.
 #
 #   scripts/splat_formats.sh INPUT.ply DIR [QUALITY ...]     (default qualities: 2 4 6 8 10)
 #
-# Environment: PWENC and PWBENCH name the binaries (default: the release builds in
+# Environment: PWENC, PWDEC and PWBENCH name the binaries (default: the release builds in
 # $CARGO_TARGET_DIR or target/); ORBIT views (8), SIZE pixels (512), UP (0,-1,0), METRICS for
 # `pwenc compare --metrics` (dists; empty for PSNR and SSIM only), WEIGHTS a weights folder,
-# PWENC_OPTIONS more options for our streams (e.g. "--importance-classes --prune-faint
-# --search-steps --refit-colours", the README's figures).
+# PWENC_OPTIONS more options for our streams (e.g. "--effort 7"; without it, the default
+# effort).
 # SOG is written on the CPU (`-g cpu`), as no GPU is assumed.
 set -euo pipefail
 [ $# -ge 2 ] || { sed -n '2,16p' "$0" >&2; exit 2; }
@@ -24,11 +26,13 @@ if [ $# -ge 1 ]; then qualities=("$@"); else qualities=(2 4 6 8 10); fi
 target=${CARGO_TARGET_DIR:-target}/release
 pwenc=${PWENC:-$target/pwenc}
 pwbench=${PWBENCH:-$target/pwbench}
+pwdec=${PWDEC:-$target/pwdec}
 metrics=${METRICS-dists}
 compare_options=(--orbit "${ORBIT:-8}" --orbit-size "${SIZE:-512}" --up "${UP:-0,-1,0}")
 [ -n "$metrics" ] && compare_options+=(--metrics "$metrics")
 [ -n "${WEIGHTS:-}" ] && compare_options+=(--weights "$WEIGHTS")
 mkdir -p "$dir"/{formats,ours,reports,renders}
+rm -f "$dir/ours/times.txt" "$dir/formats/times.txt"
 name=$(basename "${input%.*}")
 
 transform=$dir/npm/node_modules/.bin/splat-transform
@@ -45,8 +49,13 @@ for format in spz sog compressed.ply; do
     file=$dir/formats/$name.$format
     options=(-q -w)
     [ "$format" = sog ] && options+=(-g cpu)
+    start=$(date +%s.%N)
     "$transform" "${options[@]}" "$input" "$file"
+    middle=$(date +%s.%N)
     "$transform" -q -w "$file" "$file.ply"
+    end=$(date +%s.%N)
+    echo "$format: $(stat -c %s "$file") bytes, splat-transform writes it in $(echo "$middle - $start" | bc) s, reads it back to PLY in $(echo "$end - $middle" | bc) s" |
+        tee -a "$dir/formats/times.txt"
     written[$format]=$file
 done
 
@@ -60,25 +69,43 @@ for format in spz sog compressed.ply; do
     echo "our $format reader against splat-transform's: $(grep -m1 'mean over' "$dir/reports/$label.log")"
 done
 
-compare() { # NAME CANDIDATE [SIZE_OF]
-    local size_of=()
-    [ $# -ge 3 ] && size_of=(--size-of "$3")
-    "$pwenc" compare "$input" "$2" -o "$dir/renders/$1" --report "$dir/reports/$1.json" \
-        "${compare_options[@]}" "${size_of[@]}" >"$dir/reports/$1.log"
-    echo "$1: $(grep -m1 'mean over' "$dir/reports/$1.log")"
-}
-curves=()
-for format in spz sog compressed.ply; do
-    label=${format//./-}
-    compare "$label" "${written[$format]}.ply" "${written[$format]}"
-    curves+=("$label=$dir/reports/$label.json")
-done
-ours=()
+# Our streams, timed (encode, and decode with `pwdec --hash`, which rebuilds every Gaussian).
 for q in "${qualities[@]}"; do
+    start=$(date +%s.%N)
     # shellcheck disable=SC2086 # PWENC_OPTIONS is a list of options
     "$pwenc" --from "$input" --quality "$q" ${PWENC_OPTIONS:-} -o "$dir/ours/q$q.pwb" >"$dir/ours/q$q.log"
-    compare "pwgs-q$q" "$dir/ours/q$q.pwb"
-    ours+=("$dir/reports/pwgs-q$q.json")
+    middle=$(date +%s.%N)
+    "$pwdec" "$dir/ours/q$q.pwb" --hash >/dev/null
+    end=$(date +%s.%N)
+    echo "q$q: $(stat -c %s "$dir/ours/q$q.pwb") bytes, encode $(echo "$middle - $start" | bc) s, decode $(echo "$end - $middle" | bc) s" |
+        tee -a "$dir/ours/times.txt"
 done
-"$pwbench" "pwgs=$(IFS=,; echo "${ours[*]}")" "${curves[@]}" -o "$dir/report" \
-    --title "$name: pwgs against SPZ, SOG and compressed PLY (orbit renders against the input's)"
+
+# Every file scored on the orbit, and on two sets of views unlike the importance views the
+# encoder measures on: an orbit from below, and one closer in with narrower views.
+view_sets=("orbit:" "below:--orbit-elevation -35" "close:--orbit-distance 0.5 --orbit-fov 40")
+for set in "${view_sets[@]}"; do
+    label=${set%%:*}
+    read -r -a set_options <<<"${set#*:}"
+    reports=$dir/reports/$label
+    mkdir -p "$reports"
+    compare() { # NAME CANDIDATE [SIZE_OF]
+        local size_of=()
+        [ $# -ge 3 ] && size_of=(--size-of "$3")
+        "$pwenc" compare "$input" "$2" -o "$dir/renders/$label/$1" --report "$reports/$1.json" \
+            "${compare_options[@]}" "${set_options[@]}" "${size_of[@]}" >"$reports/$1.log"
+        echo "$label, $1: $(grep -m1 'mean over' "$reports/$1.log")"
+    }
+    curves=()
+    for format in spz sog compressed.ply; do
+        compare "${format//./-}" "${written[$format]}.ply" "${written[$format]}"
+        curves+=("${format//./-}=$reports/${format//./-}.json")
+    done
+    ours=()
+    for q in "${qualities[@]}"; do
+        compare "pwgs-q$q" "$dir/ours/q$q.pwb"
+        ours+=("$reports/pwgs-q$q.json")
+    done
+    "$pwbench" "pwgs=$(IFS=,; echo "${ours[*]}")" "${curves[@]}" -o "$dir/report-$label" \
+        --title "$name: pwgs against SPZ, SOG and compressed PLY ($label views: renders against the input's)"
+done

@@ -5,7 +5,7 @@ use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_encoder::metrics::psnr::psnr;
 use pwgs_encoder::plain::colour_refit::refit_colours;
 use pwgs_encoder::plain::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size, reconstruction};
-use pwgs_encoder::plain::importance::blend_weights;
+use pwgs_encoder::plain::importance::Importance;
 use pwgs_render::raster::{RenderOptions, render};
 
 #[test]
@@ -13,10 +13,10 @@ fn refitted_colours_render_closer_with_the_same_geometry() {
     let g = random_gaussians(&mut SplitMix64(21), 2000, 1, [-4.5, -2.5]);
     let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0), axis_camera(160, 120, 150.0, 150.0, 70.0, 50.0)];
     let options = RenderOptions::default();
-    let weights = blend_weights(&g, &cameras, &options);
+    let weights = Importance::of_views(&g, (&cameras, &[]), &options).weights;
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
     let settings = QuantizerSettings::for_quality(5);
-    let coding = Coding { settings: &settings, weights: Some(&weights), prune_faint: false };
+    let coding = Coding { settings: &settings, weights: Some(&weights), prune_costs: None };
     let (refitted, outcome) = refit_colours((&g, &g), coding, &context, (&cameras, &options), 8).unwrap();
     // Conjugate gradients never go uphill; rounding a quarter of the colours does, then the
     // refit of the others climbs back down.

@@ -132,7 +132,7 @@ fn a_target_size_drops_the_least_important_gaussians() {
     assert_eq!(full.pruned, 0);
     let roomy = compress_to_size(
         &g,
-        Coding { settings: &settings, weights: None, prune_faint: false },
+        Coding { settings: &settings, weights: None, prune_costs: None },
         &context,
         None,
         full.bytes.len(),
@@ -142,7 +142,7 @@ fn a_target_size_drops_the_least_important_gaussians() {
     for target in [full.bytes.len() * 2 / 3, full.bytes.len() / 4] {
         let c = compress_to_size(
             &g,
-            Coding { settings: &settings, weights: None, prune_faint: false },
+            Coding { settings: &settings, weights: None, prune_costs: None },
             &context,
             None,
             target,
@@ -160,7 +160,7 @@ fn a_target_size_drops_the_least_important_gaussians() {
         assert!(mean_logit(&c.decoded) > mean_logit(&full.decoded));
     }
     let err =
-        compress_to_size(&g, Coding { settings: &settings, weights: None, prune_faint: false }, &context, None, 50)
+        compress_to_size(&g, Coding { settings: &settings, weights: None, prune_costs: None }, &context, None, 50)
             .err()
             .unwrap();
     assert!(matches!(err, CompressError::TargetTooSmall { target: 50, .. }), "{err}");

@@ -29,7 +29,7 @@ fn encode(g: &Gaussians, settings: &QuantizerSettings) -> Result<Compressed, Com
 }
 
 fn plain(settings: &QuantizerSettings) -> Coding<'_> {
-    Coding { settings, weights: None, prune_faint: false }
+    Coding { settings, weights: None, prune_costs: None }
 }
 
 /// What the encoder keeps (indices, increasing) and each kept Gaussian's decoded position, in
@@ -99,7 +99,7 @@ fn importance_weights_choose_what_a_pile_keeps() {
             sh: g.sh[..3 * n].to_vec(),
         };
         let context = StreamContext::from_gaussians(&g, [0.0; 3]);
-        let coding = Coding { settings: &settings, weights: Some(&weights[..n]), prune_faint: false };
+        let coding = Coding { settings: &settings, weights: Some(&weights[..n]), prune_costs: None };
         let (keep, decoded) = reconstruction(&g, coding, &context).unwrap();
         assert_eq!(keep, (0..255).chain(300..n).collect::<Vec<_>>());
         assert!(decoded.means[..255].iter().all(|&m| (0..3).all(|a| (m[a] - at[a]).abs() < 1e-4)));

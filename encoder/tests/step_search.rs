@@ -4,7 +4,7 @@
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_encoder::plain::compress::{QuantizerSettings, StreamContext};
-use pwgs_encoder::plain::importance::blend_weights;
+use pwgs_encoder::plain::importance::Importance;
 use pwgs_encoder::plain::step_search::{KNOBS, Notches, Probe, search};
 use pwgs_render::raster::RenderOptions;
 
@@ -22,12 +22,12 @@ fn rotations_of_round_gaussians_go_to_the_coarsest_notch() {
     let g = round_gaussians();
     let cameras = [axis_camera(160, 120, 150.0, 150.0, 80.0, 60.0)];
     let options = RenderOptions::default();
-    let weights = blend_weights(&g, &cameras, &options);
+    let weights = Importance::of_views(&g, (&cameras, &[]), &options).weights;
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
     let probe = Probe {
         gaussians: &g,
         weights: &weights,
-        prune_faint: false,
+        prune_costs: None,
         context: &context,
         cameras: &cameras,
         options: &options,
@@ -55,7 +55,7 @@ fn notches_move_each_setting_by_its_factor() {
     // A notch coarser: half a bit fewer, that is a bit fewer and then half a bit more.
     assert_eq!((moved.position_bits, moved.position_half_bit), (base.position_bits - 1, true));
     assert_eq!(moved.class_spread, base.class_spread + 1);
-    assert_eq!(moved.faint_weight, base.faint_weight / 2.0);
+    assert_eq!(moved.prune_budget, base.prune_budget / 2.0);
     let finer = Notches([0, 0, 0, 0, -3, 0, 0]).apply(&base);
     assert_eq!((finer.position_bits, finer.position_half_bit), (base.position_bits + 1, true));
 }

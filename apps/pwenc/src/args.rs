@@ -228,15 +228,11 @@ impl EncodeArgs {
             path: model.to_path_buf(),
             spz_axes: i.spz_axes.into(),
             quality: self.plain.quality,
-            prune_faint: i.prune_faint,
             background: self.background,
-            orbit: i.orbit.map(|views| Orbit { views, up: i.up, size: i.orbit_size }),
+            orbit: i.orbit.map(|views| Orbit::ring(views, i.up, i.orbit_size)),
             orbit_renders: i.orbit_renders.clone(),
-            importance: i.importance_classes,
             up: i.up,
-            search_steps: i.search_steps,
-            refit_colours: i.refit_colours,
-            refit_shapes: i.refit_shapes.map(usize::from),
+            tools: i.tools(self.target_bytes.is_some()),
         }
     }
 

@@ -11,7 +11,7 @@ use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings}
 use pwgs_encoder::metrics::weights::default_dirs;
 use pwgs_encoder::session::{CompareJob, Orbit};
 
-use crate::values::{SpzAxesArg, check_extra_metrics, parse_color};
+use crate::values::{SpzAxesArg, check_extra_metrics, parse_color, parse_degrees_within, parse_positive};
 
 #[derive(Args)]
 pub(crate) struct CompareArgs {
@@ -41,6 +41,16 @@ pub(crate) struct CompareArgs {
     /// Width and height of the orbit views.
     #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(8..=8192))]
     orbit_size: u32,
+    /// The orbit's distance from the reference's center, in units of its radius (the
+    /// normalization's: 1.1 times the 95th percentile of the distances to the median).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    orbit_distance: f32,
+    /// The orbit's height as an angle from the horizon, in degrees (negative: from below).
+    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true, value_parser = |s: &str| parse_degrees_within(s, -89.0, 89.0))]
+    orbit_elevation: f32,
+    /// The orbit views' field of view in degrees.
+    #[arg(long, default_value_t = 60.0, value_parser = |s: &str| parse_degrees_within(s, 1.0, 170.0))]
+    orbit_fov: f32,
     /// Background: `white`, `black` or `r,g,b`.
     #[arg(long, default_value = "black", value_parser = parse_color)]
     background: [f32; 3],
@@ -66,7 +76,12 @@ impl CompareArgs {
             candidate: self.candidate,
             size_of: self.size_of,
             spz_axes: self.spz_axes.into(),
-            orbit: Orbit { views: self.orbit as usize, up: self.up, size: self.orbit_size },
+            orbit: Orbit {
+                distance: self.orbit_distance,
+                elevation_degrees: self.orbit_elevation,
+                fov_degrees: self.orbit_fov,
+                ..Orbit::ring(self.orbit as usize, self.up, self.orbit_size)
+            },
             background: self.background,
             eval: EvalOptions {
                 dir: self.output,

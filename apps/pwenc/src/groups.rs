@@ -11,6 +11,7 @@ use pwgs_cli::values::parse_vector;
 use pwgs_encoder::anchor::train::StageTwoLambda;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric};
 use pwgs_encoder::plain::compress::{DEFAULT_QUALITY, MAX_QUALITY};
+use pwgs_encoder::session::{DEFAULT_EFFORT, MAX_EFFORT, Tools};
 use pwgs_encoder::train::device::DeviceChoice;
 use pwgs_encoder::train::views::DEFAULT_IMAGE_BUDGET;
 
@@ -44,45 +45,71 @@ pub(crate) struct ImportArgs {
     /// Save the orbit renders (input and decoded) as PNGs in this folder.
     #[arg(long, requires = "orbit", hide_short_help = true)]
     pub(crate) orbit_renders: Option<PathBuf>,
+    /// How hard to work for a smaller stream: 0 (fastest) to 9 (smallest).
+    ///
+    /// Each level is a fixed set of the tools below: 0 uniform steps, 1 importance classes, 2
+    /// with pruning, 3 and 4 with a colour refit, 5 with the step search, 6 to 9 with a shape
+    /// refit and longer refits. The options below add their tool to the level's. With
+    /// --target-bytes the refits are left out.
+    #[arg(long, default_value_t = DEFAULT_EFFORT, value_name = "0..9",
+          value_parser = clap::value_parser!(u8).range(0..=MAX_EFFORT as i64))]
+    pub(crate) effort: u8,
     /// Coarser steps for the Gaussians that show less (importance classes).
     ///
     /// Each Gaussian is coded with steps by how much it shows from 57 views around and above
     /// the model (SPEC.md section 6.5).
-    #[arg(long)]
+    #[arg(long, hide_short_help = true)]
     pub(crate) importance_classes: bool,
-    /// With --importance-classes: drop the Gaussians that show least.
+    /// Drop the Gaussians that show least (with importance classes).
     ///
-    /// Drops the Gaussians whose summed weight in the importance views is below 2^(4 -
-    /// quality) times the reference (the 90th percentile), those no view shows among them:
-    /// where a missing Gaussian costs less than its bytes buy elsewhere. Off by default: views
-    /// unlike those may show them.
-    #[arg(long, requires = "importance_classes")]
+    /// Drops the faintest Gaussians, as many as leave every importance view (all round the
+    /// model, and closer in) at least 1 - 2^(3 - quality) of its colour (at most an eighth
+    /// lost).
+    #[arg(long, hide_short_help = true)]
     pub(crate) prune_faint: bool,
-    /// With --importance-classes: search this model's steps for the fewest bytes.
+    /// Search this model's steps for the fewest bytes (with importance classes).
     ///
     /// Searches how coarse each attribute's steps are against the others' (and how far apart
-    /// the classes and where the faint floor lie) for the fewest bytes along the quality curve,
-    /// scoring candidates on renders of the importance views. Slower (tens of candidates, each
-    /// written, decoded and rendered).
-    #[arg(long, requires = "importance_classes")]
+    /// the classes are and how much pruning may take) for the fewest bytes along the quality
+    /// curve, scoring candidates on renders of the importance views. Slower (tens of
+    /// candidates, each written, decoded and rendered).
+    #[arg(long, hide_short_help = true)]
     pub(crate) search_steps: bool,
-    /// With --importance-classes: refit the colours to the quantized geometry.
+    /// Refit the colours to the quantized geometry (with importance classes).
     ///
     /// So that the stream renders closest to the model on the importance views (least
-    /// squares, the geometry held), before they are quantized. Not with --target-bytes (the
-    /// refit is for the Gaussians the quality keeps).
-    #[arg(long, requires = "importance_classes", conflicts_with = "target_bytes")]
+    /// squares, the geometry held; 8 conjugate-gradient iterations), before they are
+    /// quantized. Not with --target-bytes (the refit is for the Gaussians the quality keeps).
+    #[arg(long, conflicts_with = "target_bytes", hide_short_help = true)]
     pub(crate) refit_colours: bool,
-    /// With --importance-classes: refit the shapes to the quantized positions for EPOCHS.
+    /// Refit the shapes to the quantized positions for EPOCHS (with importance classes).
     ///
     /// Refits the scales, rotations, opacities and SH to the quantized positions (and to the
     /// Gaussians pruned) so that the stream renders closest to the model on the importance
     /// views: this many epochs of gradient descent over those views, before they are quantized
     /// (and before --refit-colours). Not with --target-bytes.
-    #[arg(long, requires = "importance_classes", conflicts_with = "target_bytes", value_name = "EPOCHS",
+    #[arg(long, conflicts_with = "target_bytes", value_name = "EPOCHS", hide_short_help = true,
           value_parser = clap::value_parser!(u16).range(1..=100))]
     pub(crate) refit_shapes: Option<u16>,
 }
+
+impl ImportArgs {
+    /// The effort's tools with those the options add; the refits left out for a target size.
+    pub(crate) fn tools(&self, target_size: bool) -> Tools {
+        let given = Tools {
+            importance: self.importance_classes,
+            prune_faint: self.prune_faint,
+            search_steps: self.search_steps,
+            refit_shapes: self.refit_shapes.map(usize::from),
+            refit_colours: self.refit_colours.then_some(COLOUR_REFIT_ITERATIONS),
+        };
+        let tools = Tools::of_effort(self.effort).with(given);
+        if target_size { tools.without_refits() } else { tools }
+    }
+}
+
+/// `--refit-colours`' conjugate-gradient iterations: effort 4's.
+const COLOUR_REFIT_ITERATIONS: usize = 8;
 
 /// Options of the plain base (and `--quality`, which an import reads too).
 #[derive(Args)]

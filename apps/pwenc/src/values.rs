@@ -21,6 +21,14 @@ pub(crate) fn parse_positive(s: &str) -> Result<f32, String> {
     }
 }
 
+/// An angle in degrees from `low` to `high`.
+pub(crate) fn parse_degrees_within(s: &str, low: f32, high: f32) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (low..=high).contains(&v) => Ok(v),
+        _ => Err(format!("`{s}` is not an angle from {low} to {high} degrees")),
+    }
+}
+
 pub(crate) fn parse_weight(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),

@@ -130,6 +130,8 @@ fn compresses_an_imported_ply() {
         &path("out.pwb"),
         "--quality",
         "7",
+        "--effort",
+        "0",
         "--orbit",
         "2",
         "--orbit-size",
@@ -150,7 +152,18 @@ fn compresses_an_imported_ply() {
     assert_eq!(decoded.scene.plain_gaussians().unwrap().len(), 800);
     // A target size half the stream's drops Gaussians until it fits, and says so.
     let target = (bytes.len() / 2).to_string();
-    let args = ["--from-ply", &path("in.ply"), "-o", &path("half.pwb"), "--quality", "7", "--target-bytes", &target];
+    let args = [
+        "--from-ply",
+        &path("in.ply"),
+        "-o",
+        &path("half.pwb"),
+        "--quality",
+        "7",
+        "--effort",
+        "0",
+        "--target-bytes",
+        &target,
+    ];
     let out = pwenc(&[&args[..], &["--report", &path("half.json")]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report: serde_json::Value = serde_json::from_slice(&std::fs::read(path("half.json")).unwrap()).unwrap();
@@ -158,15 +171,26 @@ fn compresses_an_imported_ply() {
     assert!(half <= bytes.len() / 2 && half + 200 > bytes.len() / 2, "{half} bytes for a target of {target}");
     let pruned = report["stream"]["pruned_to_fit"].as_u64().unwrap();
     assert!(pruned > 300 && report["stream"]["gaussians"].as_u64().unwrap() + pruned == 800, "{report}");
-    // Importance classes: the stream holds IMPC and the same Gaussians.
-    let args = ["--from", &path("in.ply"), "-o", &path("classes.pwb"), "--quality", "7", "--importance-classes"];
-    let out = pwenc(&args);
+    // Importance classes (effort 1, or effort 0 with the option): the stream holds IMPC and
+    // the same Gaussians.
+    for tools in [&["--effort", "1"][..], &["--effort", "0", "--importance-classes"]] {
+        let (input, output) = (path("in.ply"), path("classes.pwb"));
+        let args = [&["--from", &input, "-o", &output, "--quality", "7"][..], tools].concat();
+        let out = pwenc(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 57 views"), "{tools:?}");
+        let classes = std::fs::read(path("classes.pwb")).unwrap();
+        let container = pwgs_bitstream::Container::parse(&classes).unwrap();
+        assert!(container.section(pwgs_codec::stream::classes::CLASSES).is_some());
+        assert_eq!(pwgs_codec::stream::decode(&classes).unwrap().scene.plain_gaussians().unwrap().len(), 800);
+    }
+    // The default effort prunes too, and codes smaller than effort 0.
+    let out = pwenc(&["--from", &path("in.ply"), "-o", &path("default.pwb"), "--quality", "7"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 57 views"));
-    let classes = std::fs::read(path("classes.pwb")).unwrap();
-    let container = pwgs_bitstream::Container::parse(&classes).unwrap();
-    assert!(container.section(pwgs_codec::stream::classes::CLASSES).is_some());
-    assert_eq!(pwgs_codec::stream::decode(&classes).unwrap().scene.plain_gaussians().unwrap().len(), 800);
+    let default = std::fs::read(path("default.pwb")).unwrap();
+    assert!(default.len() < bytes.len(), "default {} bytes, effort 0 {}", default.len(), bytes.len());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("importance: 124 views") && stdout.contains("too faint in the importance views dropped"));
     // Without -o there is nowhere to write.
     let out = pwenc(&["--from-ply", &path("in.ply")]);
     assert!(!out.status.success());
@@ -177,7 +201,7 @@ fn compresses_an_imported_ply() {
     std::fs::write(path("in.splat"), gaussians_to_splat_bytes(&model)).unwrap();
     std::fs::write(path("in.spz"), gaussians_to_spz_bytes(&model, SpzVersion::V3)).unwrap();
     for input in ["in.splat", "in.spz"] {
-        let out = pwenc(&["--from", &path(input), "-o", &path("other.pwb")]);
+        let out = pwenc(&["--from", &path(input), "-o", &path("other.pwb"), "--effort", "0"]);
         assert!(out.status.success(), "{input}: {}", String::from_utf8_lossy(&out.stderr));
         let decoded = pwgs_codec::stream::decode(&std::fs::read(path("other.pwb")).unwrap()).unwrap();
         let expected =
@@ -211,7 +235,7 @@ fn a_closed_standard_output_loses_nothing() {
     let g = pwgs_core::random::random_gaussians(&mut pwgs_core::random::SplitMix64(4), 300, 0, [-4.0, -2.5]);
     pwgs_core::ply::write_gaussians(&model, &g).unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_pwenc"))
-        .args(["--from", model.to_str().unwrap(), "-o", stream.to_str().unwrap()])
+        .args(["--from", model.to_str().unwrap(), "-o", stream.to_str().unwrap(), "--effort", "0"])
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -292,15 +316,13 @@ fn an_option_the_job_would_ignore_is_refused() {
         (vec![scene, "--spz-axes", "rdf"], "--spz-axes applies to --from-ply"),
         (vec![scene, "--orbit", "4"], "--orbit applies to --from-ply"),
         (vec![scene, "--importance-classes"], "--importance-classes applies to --from-ply"),
-        (vec!["--from", "m.ply", "-o", "x.pwb", "--prune-faint"], "--importance-classes"),
-        (vec!["--from", "m.ply", "-o", "x.pwb", "--search-steps"], "--importance-classes"),
-        (vec![scene, "--search-steps"], "--importance-classes"),
-        (vec!["--from", "m.ply", "-o", "x.pwb", "--refit-colours"], "--importance-classes"),
+        (vec![scene, "--effort", "3"], "--effort applies to --from-ply"),
+        (vec!["--from", "m.ply", "-o", "x.pwb", "--effort", "10"], "--effort"),
+        (vec![scene, "--search-steps"], "--search-steps applies to --from-ply"),
         (
             vec!["--from", "m.ply", "-o", "x.pwb", "--importance-classes", "--refit-colours", "--target-bytes", "9"],
             "--target-bytes",
         ),
-        (vec!["--from", "m.ply", "-o", "x.pwb", "--refit-shapes", "4"], "--importance-classes"),
         (
             vec!["--from", "m.ply", "-o", "x.pwb", "--importance-classes", "--refit-shapes=4", "--target-bytes=9"],
             "--target-bytes",
@@ -332,10 +354,12 @@ fn help_gives_the_main_options_by_group_and_help_all_every_option() {
         assert!(short.contains(heading) && all.contains(heading), "{heading}");
     }
     // The main options are in both; experts' knobs and ablations only in --help-all, with details.
-    for option in ["--from", "--lambda", "--quality", "--no-wrapper", "--importance-classes", "--eval"] {
+    for option in ["--from", "--lambda", "--quality", "--no-wrapper", "--effort", "--eval"] {
         assert!(short.contains(option), "{option}");
     }
-    for option in ["--wd-vgg-blocks", "--no-plucker", "--context-planes", "--position-lr", "--spz-axes"] {
+    for option in
+        ["--wd-vgg-blocks", "--no-plucker", "--context-planes", "--position-lr", "--spz-axes", "--prune-faint"]
+    {
         assert!(!short.contains(option) && all.contains(option), "{option}");
     }
     assert!(all.contains("Niantic") && !short.contains("Niantic"), "details only in --help-all");

@@ -10,24 +10,41 @@ use pwgs_render::raster::{RenderOptions, render};
 
 use crate::plain::compress::StreamContext;
 
-/// Horizontal field of view of orbit cameras.
-const ORBIT_FOV_DEGREES: f32 = 60.0;
-/// Orbit radius in units of the normalization scale, and its elevation.
-const ORBIT_RADIUS: f32 = 1.0;
-const ORBIT_ELEVATION_DEGREES: f32 = 20.0;
+/// Views on a circle around a model, looking at its normalization center.
+#[derive(Debug, Clone)]
+pub struct Orbit {
+    pub views: usize,
+    pub up: [f32; 3],
+    /// Width and height of the views.
+    pub size: u32,
+    /// The circle's distance from the center, in units of the normalization scale.
+    pub distance: f32,
+    /// Its height above the center, as an angle from the horizon of `up` (negative: below).
+    pub elevation_degrees: f32,
+    /// The views' field of view (horizontal and vertical).
+    pub fov_degrees: f32,
+}
 
-/// `count` square cameras of `size` pixels circling the scene's normalization center.
-pub fn orbit_cameras(context: &StreamContext, up: Vec3, count: usize, size: u32) -> Result<Vec<Camera>, CameraError> {
-    let f = size as f32 / 2.0 / (ORBIT_FOV_DEGREES.to_radians() / 2.0).tan();
+impl Orbit {
+    /// The default circle: at the normalization's radius, 20 degrees up, 60-degree views.
+    pub fn ring(views: usize, up: [f32; 3], size: u32) -> Self {
+        Self { views, up, size, distance: 1.0, elevation_degrees: 20.0, fov_degrees: 60.0 }
+    }
+}
+
+/// The square cameras of `orbit` around the scene's normalization center.
+pub fn orbit_cameras(context: &StreamContext, orbit: &Orbit) -> Result<Vec<Camera>, CameraError> {
+    let size = orbit.size;
+    let f = size as f32 / 2.0 / (orbit.fov_degrees.to_radians() / 2.0).tan();
     let intrinsics =
         Intrinsics { width: size, height: size, fx: f, fy: f, cx: size as f32 / 2.0, cy: size as f32 / 2.0 };
     Camera::orbit(
         intrinsics,
         Vec3::from(context.center),
-        up,
-        ORBIT_RADIUS * context.scale,
-        ORBIT_ELEVATION_DEGREES.to_radians(),
-        count,
+        Vec3::from(orbit.up),
+        orbit.distance * context.scale,
+        orbit.elevation_degrees.to_radians(),
+        orbit.views,
     )
 }
 

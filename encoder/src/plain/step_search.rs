@@ -1,6 +1,6 @@
 //! A per-model search of the quantizer's balance (`pwenc --from X --importance-classes
 //! --search-steps`): how coarse each attribute's step is against the others, how far apart the
-//! importance classes are, and where the faint-Gaussian floor lies. A quality level fixes all of
+//! importance classes are, and how much of any view pruning may take. A quality level fixes all of
 //! them together, but the balance that codes one model smallest does not suit another: on biker
 //! (positions and opacities where its error is), rotations, scales and colours can be coarser
 //! than on guitar. The stream holds every step, so any balance decodes with any decoder.
@@ -31,7 +31,7 @@ use crate::plain::compress::{Coding, CompressError, QuantizerSettings, StreamCon
 use crate::plain::fidelity::renders;
 
 /// The knobs, each moved in notches from the quality level's settings.
-pub const KNOBS: [&str; 7] = ["scale", "rotation", "opacity", "colour", "position", "class spread", "faint floor"];
+pub const KNOBS: [&str; 7] = ["scale", "rotation", "opacity", "colour", "position", "class spread", "prune budget"];
 /// Farthest a knob moves from the quality level's setting, in notches.
 const MAX_NOTCHES: i8 = 4;
 /// Most moves the search makes.
@@ -39,14 +39,14 @@ const MAX_MOVES: usize = 12;
 
 /// Notches of each knob away from a quality level's settings: a notch is a factor sqrt(2) in
 /// the scale, rotation, opacity and colour steps and the position grid's cell, one sqrt(2) in
-/// the factor between successive importance classes, and a factor 2 in the faint floor.
+/// the factor between successive importance classes, and a factor 2 in the prune budget.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize)]
 pub struct Notches(pub [i8; 7]);
 
 impl Notches {
     /// `base` moved by these notches (all at 0: `base` itself).
     pub fn apply(&self, base: &QuantizerSettings) -> QuantizerSettings {
-        let [scale, rotation, opacity, colour, position, spread, floor] = self.0.map(i32::from);
+        let [scale, rotation, opacity, colour, position, spread, budget] = self.0.map(i32::from);
         let half_bits = (2 * i32::from(base.position_bits) + i32::from(base.position_half_bit) - position).clamp(2, 48);
         QuantizerSettings {
             log_scale_step: base.log_scale_step * sqrt2_power(scale),
@@ -57,7 +57,7 @@ impl Notches {
             position_bits: (half_bits / 2) as u8,
             position_half_bit: half_bits % 2 == 1,
             class_spread: (i32::from(base.class_spread) + spread).clamp(1, 8) as u8,
-            faint_weight: base.faint_weight * sqrt2_power(2 * floor),
+            prune_budget: base.prune_budget * sqrt2_power(2 * budget),
             ..base.clone()
         }
     }
@@ -74,7 +74,8 @@ impl Notches {
 pub struct Probe<'a> {
     pub gaussians: &'a Gaussians,
     pub weights: &'a [f32],
-    pub prune_faint: bool,
+    /// With pruning: the pruning costs ([`Coding::prune_costs`]).
+    pub prune_costs: Option<&'a [f32]>,
     pub context: &'a StreamContext,
     pub cameras: &'a [Camera],
     pub options: &'a RenderOptions,
@@ -156,7 +157,7 @@ pub fn search(probe: &Probe, quality: u8) -> Result<SearchOutcome, CompressError
 
 /// Writes and decodes the model with `settings`, and scores the decoded Gaussians' renders.
 fn measure(probe: &Probe, settings: &QuantizerSettings, references: &[RgbImage]) -> Result<Score, CompressError> {
-    let coding = Coding { settings, weights: Some(probe.weights), prune_faint: probe.prune_faint };
+    let coding = Coding { settings, weights: Some(probe.weights), prune_costs: probe.prune_costs };
     let compressed = compress_to_size(probe.gaussians, coding, probe.context, None, usize::MAX)?;
     let candidate = renders(&compressed.decoded.scene, probe.cameras, probe.options);
     let mse = candidate.iter().zip(references).map(|(a, b)| mse(a, b)).sum::<f64>() / references.len().max(1) as f64;

@@ -72,7 +72,7 @@ pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
     let bytes = std::fs::metadata(sized).with_context(|| format!("cannot read {}", sized.display()))?.len();
 
     let orbit = &job.orbit;
-    let cameras = orbit_cameras(&context, Vec3::from(orbit.up), orbit.views, orbit.size)?;
+    let cameras = orbit_cameras(&context, orbit)?;
     let options = RenderOptions { background: job.background, ..Default::default() };
     let truths = renders(&reference, &cameras, &options);
     let views: Vec<View> = cameras

@@ -13,24 +13,16 @@ use pwgs_core::splat_file::SpzAxes;
 use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
+use super::effort::Tools;
 use super::job::{Coded, EncodeReport, Finish, RunReport};
 use super::{StreamOptions, StreamSummary, code_stream, read_model};
 use crate::metrics::psnr::{psnr, psnr_of_mse};
 use crate::plain::colour_refit::{self, RefitOutcome};
 use crate::plain::compress::{Coding, QuantizerSettings, StreamContext};
-use crate::plain::fidelity::{orbit_cameras, renders};
-use crate::plain::importance;
+use crate::plain::fidelity::{Orbit, orbit_cameras, renders};
+use crate::plain::importance::{self, Importance};
 use crate::plain::shape_refit::{self, ShapeRefitOutcome};
 use crate::plain::step_search::{self, KNOBS, Probe, SearchOutcome};
-
-/// Views on a circle around the model, rendered from the input and from the decoded stream.
-#[derive(Debug, Clone)]
-pub struct Orbit {
-    pub views: usize,
-    pub up: [f32; 3],
-    /// Width and height of the views.
-    pub size: u32,
-}
 
 /// Compressing a model trained elsewhere.
 #[derive(Debug, Clone)]
@@ -42,26 +34,15 @@ pub struct ModelImport {
     /// The stream's quality level, 0 (smallest) to
     /// [`MAX_QUALITY`](crate::plain::compress::MAX_QUALITY).
     pub quality: u8,
-    /// With importance weights: drop the Gaussians too faint to pay for their bytes.
-    pub prune_faint: bool,
     pub background: [f32; 3],
+    /// Views rendered from the input and from the decoded stream.
     pub orbit: Option<Orbit>,
     /// Save the orbit's renders (input and decoded) as PNGs here.
     pub orbit_renders: Option<PathBuf>,
-    /// Code the Gaussians in importance classes by how much they show from all around
-    /// (SPEC.md section 6.5).
-    pub importance: bool,
     /// The model's up direction: the importance views are on or above its horizon.
     pub up: [f32; 3],
-    /// With `importance`: search the balance of the steps for this model on the importance
-    /// views ([`step_search`]) instead of taking the quality level's.
-    pub search_steps: bool,
-    /// With `importance`: refit the colours to the quantized geometry on the importance views
-    /// ([`colour_refit`]).
-    pub refit_colours: bool,
-    /// With `importance`: refit the scales, rotations, opacities and SH to the quantized
-    /// positions on the importance views ([`shape_refit`]), `epochs` passes.
-    pub refit_shapes: Option<usize>,
+    /// The tools that code it smaller ([`Tools::of_effort`]).
+    pub tools: Tools,
 }
 
 #[derive(Serialize)]
@@ -98,10 +79,10 @@ pub(super) fn run(job: &ModelImport, finish: Finish) -> Result<EncodeReport> {
         path,
         quality: job.quality,
         target_bytes: finish.outputs.target_bytes,
-        prune_faint: job.prune_faint,
+        prune_faint: job.tools.prune_faint,
     };
     let (compressed, stream) =
-        code_stream(coded, (&context, &plan.settings), &stream_options, None, plan.weights.as_deref())?;
+        code_stream(coded, (&context, &plan.settings), &stream_options, None, plan.importance.as_ref())?;
     let decoded_scene = &compressed.decoded.scene;
     let coded = Coded { stream: Some(&compressed.bytes), shown: decoded_scene, test: &[], export: None };
     finish.finish(coded, || {
@@ -120,8 +101,7 @@ fn score_orbit(
 ) -> Result<Vec<f64>> {
     let mut orbit_psnr = Vec::new();
     if let Some(orbit) = &job.orbit {
-        let cameras = orbit_cameras(context, Vec3::from(orbit.up), orbit.views, orbit.size)
-            .with_context(|| views_problem("orbit", context))?;
+        let cameras = orbit_cameras(context, orbit).with_context(|| views_problem("orbit", context))?;
         let (frame, background) = (decoded_scene.frame, decoded_scene.background);
         let input = Scene { base: Base::Plain(input), wrapper: None, frame, background };
         let reference = renders(&input, &cameras, options);
@@ -201,7 +181,7 @@ fn print_search(outcome: &SearchOutcome, views: usize, seconds: f64) {
 /// How an import codes its model: the importance weights, the settings, and the model to code
 /// (the input, or the input with refitted colours).
 struct CodingPlan {
-    weights: Option<Vec<f32>>,
+    importance: Option<Importance>,
     settings: QuantizerSettings,
     step_search: Option<SearchOutcome>,
     refitted: Option<Gaussians>,
@@ -216,43 +196,46 @@ fn plan_coding(
     options: &RenderOptions,
 ) -> Result<CodingPlan> {
     let mut plan = CodingPlan {
-        weights: None,
+        importance: None,
         settings: QuantizerSettings::for_quality(job.quality),
         step_search: None,
         refitted: None,
         colour_refit: None,
         shape_refit: None,
     };
-    if !job.importance {
+    let tools = job.tools;
+    if !tools.importance {
         return Ok(plan);
     }
     let start = Instant::now();
-    let cameras = importance::cameras(context, Vec3::from(job.up), importance::VIEW_SIZE)
+    let measured = Importance::measure(gaussians, (context, Vec3::from(job.up)), options, tools.prune_faint)
         .with_context(|| views_problem("importance", context))?;
-    let weights = importance::blend_weights(gaussians, &cameras, options);
-    let hidden = weights.iter().filter(|&&w| w == 0.0).count();
+    let hidden = measured.weights.iter().filter(|&&w| w == 0.0).count();
     say!(
-        "importance: {} views of {size}x{size} in {:.1} s; {hidden} of {} Gaussians never blended",
-        cameras.len(),
+        "importance: {} views of {size}x{size} in {:.1} s; {hidden} of {} Gaussians never blended in the upper ones",
+        measured.views,
         start.elapsed().as_secs_f64(),
         gaussians.len(),
         size = importance::VIEW_SIZE,
     );
-    if job.search_steps {
+    let cameras = importance::cameras(context, Vec3::from(job.up), importance::VIEW_SIZE)
+        .with_context(|| views_problem("importance", context))?;
+
+    let (weights, prune_costs) = (&measured.weights[..], tools.prune_faint.then_some(&measured.prune_costs[..]));
+    if tools.search_steps {
         let start = Instant::now();
         let views: Vec<_> = cameras.iter().step_by(SEARCH_VIEW_STRIDE).cloned().collect();
-        let probe =
-            Probe { gaussians, weights: &weights, prune_faint: job.prune_faint, context, cameras: &views, options };
+        let probe = Probe { gaussians, weights, prune_costs, context, cameras: &views, options };
         let outcome = step_search::search(&probe, job.quality)?;
         print_search(&outcome, views.len(), start.elapsed().as_secs_f64());
         plan.settings = outcome.settings.clone();
         plan.step_search = Some(outcome);
     }
-    if job.refit_shapes.is_some() {
-        plan.settings.faint_weight *= REFIT_FAINT_FACTOR;
+    if tools.refit_shapes.is_some() {
+        plan.settings.prune_budget *= REFIT_BUDGET_FACTOR;
     }
-    let coding = Coding { settings: &plan.settings, weights: Some(&weights), prune_faint: job.prune_faint };
-    if let Some(epochs) = job.refit_shapes {
+    let coding = Coding { settings: &plan.settings, weights: Some(weights), prune_costs };
+    if let Some(epochs) = tools.refit_shapes {
         let start = Instant::now();
         let (refitted, outcome) = shape_refit::refit_shapes(gaussians, coding, context, (&cameras, options), epochs)?;
         say!(
@@ -265,11 +248,11 @@ fn plan_coding(
         plan.refitted = Some(refitted);
         plan.shape_refit = Some(outcome);
     }
-    if job.refit_colours {
+    if let Some(iterations) = tools.refit_colours {
         let start = Instant::now();
         let model = plan.refitted.as_ref().unwrap_or(gaussians);
         let (refitted, outcome) =
-            colour_refit::refit_colours((model, gaussians), coding, context, (&cameras, options), REFIT_ITERATIONS)?;
+            colour_refit::refit_colours((model, gaussians), coding, context, (&cameras, options), iterations)?;
         say!(
             "colour refit: {} Gaussians on {} views in {:.1} s: {:.2} dB -> {} dB (before quantizing the colours)",
             outcome.gaussians,
@@ -281,17 +264,10 @@ fn plan_coding(
         plan.refitted = Some(refitted);
         plan.colour_refit = Some(outcome);
     }
-    plan.weights = Some(weights);
+    plan.importance = Some(measured);
     Ok(plan)
 }
 
-/// With `--refit-shapes` the faint floor (the step search's, or the quality level's) is this
-/// much higher: the refitted Gaussians around a pruned one fill its gap. On biker at quality
-/// 10 with the search and both refits, a floor twice as high codes 4.9% smaller at 0.65 dB
-/// less, about 2% smaller than the curve there; four times as high, worse than the curve.
-const REFIT_FAINT_FACTOR: f32 = 2.0;
-
-/// Conjugate-gradient iterations of `--refit-colours`: on biker (quality 11, 57 views) 8 of
-/// them reach 58.61 dB on the linear model and 57.81 dB on the orbit after quantizing, 16
-/// reach 59.14 dB and 57.87 dB in twice the time.
-const REFIT_ITERATIONS: usize = 8;
+/// With `--refit-shapes` the prune budget (the step search's, or the quality level's) is this
+/// much larger: the refitted Gaussians around a pruned one fill its gap.
+const REFIT_BUDGET_FACTOR: f32 = 2.0;

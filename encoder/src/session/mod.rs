@@ -6,6 +6,7 @@
 
 mod anchor;
 mod compare;
+mod effort;
 mod import;
 mod job;
 mod plain;
@@ -22,6 +23,7 @@ use pwgs_core::splat_file::SpzAxes;
 use serde::Serialize;
 
 use crate::plain::compress::{Coding, Compressed, QuantizerSettings, StreamContext, compress_to_size};
+use crate::plain::importance::Importance;
 use crate::wrapper::synthesis::{QuantizationSample, choose_quantization};
 use pwgs_codec::wrapper::conditioning;
 use pwgs_codec::wrapper::synthesis::SynthesisWeights;
@@ -29,9 +31,11 @@ use pwgs_core::camera::Camera;
 use pwgs_core::frame::SceneFrame;
 use pwgs_dataset::Dataset;
 
+pub use crate::plain::fidelity::Orbit;
 pub use anchor::{AnchorReport, AnchorStreamSummary, AnchorTraining};
 pub use compare::{CompareJob, CompareReport, compare_models};
-pub use import::{ImportReport, ModelImport, Orbit};
+pub use effort::{DEFAULT_EFFORT, MAX_EFFORT, Tools};
+pub use import::{ImportReport, ModelImport};
 pub use job::{BaseTraining, EncodeJob, EncodeReport, Input, Outputs, RunReport, SceneSummary, encode};
 pub use plain::{PlainReport, PlainTraining};
 
@@ -43,7 +47,7 @@ struct StreamOptions {
     pub quality: u8,
     /// Largest stream size in bytes; the least important Gaussians are dropped to fit.
     pub target_bytes: Option<u64>,
-    /// With importance weights: drop the Gaussians too faint to pay for their bytes.
+    /// With importance: drop the Gaussians too faint to pay for their bytes.
     pub prune_faint: bool,
 }
 
@@ -106,11 +110,15 @@ fn code_stream(
     (context, settings): (&StreamContext, &QuantizerSettings),
     options: &StreamOptions,
     wrapper: Option<&QuantizedSynthesis>,
-    weights: Option<&[f32]>,
+    importance: Option<&Importance>,
 ) -> Result<(Compressed, StreamSummary)> {
     let start = Instant::now();
     let limit = size_limit(options.target_bytes);
-    let coding = Coding { settings, weights, prune_faint: options.prune_faint };
+    let coding = Coding {
+        settings,
+        weights: importance.map(|i| &i.weights[..]),
+        prune_costs: importance.filter(|_| options.prune_faint).map(|i| &i.prune_costs[..]),
+    };
     let compressed = compress_to_size(g, coding, context, wrapper, limit)?;
     let path = &options.path;
     let sections = section_sizes(&compressed.bytes);

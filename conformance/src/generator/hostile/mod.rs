@@ -40,7 +40,9 @@ pub enum Tool {
     /// `pwdec FILE --view VIEW -o out.png` with the entry's view, or `pwdec FILE --hash`
     /// without one.
     Pwdec,
-    /// `pwenc --from FILE -o out.pwb`.
+    /// `pwenc --from FILE -o out.pwb --effort 0`: the coder alone, so that the outcome is the
+    /// file's (at the default effort the importance views may prune what the coder would refuse,
+    /// and only the bounds are checked).
     PwencFrom,
 }
 
