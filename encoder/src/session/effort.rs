@@ -1,7 +1,8 @@
 //! `pwenc --from MODEL --effort 0..9`: how hard an import works for a smaller stream at its
 //! quality, as codecs' presets do (zstd's levels, `cwebp -m`). Each level is a fixed set of the
-//! import's tools; the individual options add tools to it. The levels and the default come from
-//! the measured table in docs/results/splat-formats.md ("Effort levels").
+//! import's tools; the individual options add tools to it. The default and the levels up to 3
+//! come from the measured table in docs/results/splat-formats.md ("Effort levels"), the levels
+//! above from what each tool brought there ("What each tool brings") and its time.
 
 /// The tools of an import ([`ModelImport`](super::ModelImport)'s switches).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,9 +34,9 @@ impl Tools {
     /// iterations, 5 with the step search, 6 and 7 with a shape refit of 6 and 12 epochs, 8
     /// with 16 colour iterations, 9 with 24 shape epochs. The colour refit needs all 57
     /// importance views at 512x512: on every third of them at 256x256 (a tenth of the time) it
-    /// fits those views and codes guitar and biker larger at a lower PSNR than level 2. (The colour refit on biker at quality
-    /// 11: 8 iterations reach 57.81 dB on the orbit after quantizing, 16 reach 57.87 dB in
-    /// twice the time.)
+    /// fits those views and codes guitar and biker larger at a lower PSNR than level 2. (On
+    /// biker at quality 11, 8 colour iterations reach 57.81 dB on the orbit after quantizing,
+    /// 16 reach 57.87 dB in twice the time.)
     pub fn of_effort(effort: u8) -> Self {
         let effort = effort.min(MAX_EFFORT);
         let at = |level: u8| effort >= level;
