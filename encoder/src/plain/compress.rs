@@ -47,14 +47,14 @@ pub struct QuantizerSettings {
     pub class_spread: u8,
     /// With pruning: the share of a view's pixels that the Gaussians dropped as faint may cover
     /// together, in every importance view ([`importance::Importance::prune_costs`]),
-    /// `2^(3 - quality)` (at most [`MAX_PRUNE_BUDGET`]). Their error when missing is about that share of the view's squared
-    /// colour error, and a kept Gaussian's quantization error about a step squared: so the budget
-    /// falls with the step squared, a factor 2 each quality level. Measured on guitar at quality
-    /// 8 against a floor on each Gaussian's own weight (0.5 times the reference at quality 5,
-    /// halving each level), at about equal bytes (428,104 against 424,758): 50.89 dB against
-    /// 51.32 on the orbit, 43.68 against 38.81 dB on an orbit from 35 degrees below; budgets 4
-    /// and 16 times smaller kept more Gaussians than they paid for on the orbit (0.9 to 2 dB
-    /// below the floor's curve at equal bytes).
+    /// `2^(3 - quality)` (at most [`MAX_PRUNE_BUDGET`]). Their error when missing is about that
+    /// share of the view's squared colour error, and a kept Gaussian's quantization error about
+    /// a step squared: so the budget falls with the step squared, a factor 2 each quality level.
+    /// Measured on guitar at quality 8 against a floor on each Gaussian's own weight (0.5 times
+    /// the reference at quality 5, halving each level), at about equal bytes (428,104 against
+    /// 424,758): 50.89 dB against 51.32 on the orbit, 43.68 against 38.81 dB on an orbit from
+    /// 35 degrees below; budgets 4 and 16 times smaller kept more Gaussians than they paid for
+    /// on the orbit (0.9 to 2 dB below the floor's curve at equal bytes).
     pub prune_budget: f32,
 }
 

@@ -28,8 +28,8 @@ pub const VIEW_SIZE: u32 = 512;
 /// Width and height of the other views pruning holds on: a quarter of the pixels, each view's
 /// share measured against its own pixel count. With these, guitar's 124 views take about as
 /// long as its 57 class views of [`VIEW_SIZE`] alone did.
-const OTHER_VIEW_SIZE: u32 = 256;
-/// Most pixels [`Importance::measure`] renders, whatever the up direction (the 98 directions at
+pub const OTHER_VIEW_SIZE: u32 = 256;
+/// Most pixels an import's [`Importance`] renders, whatever the up direction (the 98 directions at
 /// [`VIEW_SIZE`], the 26 closer ones at [`OTHER_VIEW_SIZE`]): what bounds an import's work.
 pub const MAX_RENDERED_PIXELS: u64 =
     98 * (VIEW_SIZE as u64 * VIEW_SIZE as u64) + 26 * (OTHER_VIEW_SIZE as u64 * OTHER_VIEW_SIZE as u64);
@@ -68,10 +68,12 @@ pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camer
     ring_cameras(context, up, size, (&directions(5), 1.0), |d| d.dot(up) >= -1e-6)
 }
 
-/// The views that pruning must hold on besides [`cameras`]: the rest of the sphere (the 41
-/// directions below the horizon) at the same distance, and the 26 directions of a 3 x 3 x 3
-/// grid at half the distance, closer in, where the model's middle fills twice the width.
-fn other_cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camera>, CameraError> {
+/// The views that pruning must hold on besides [`cameras`], of [`OTHER_VIEW_SIZE`] pixels: the
+/// rest of the sphere (the 41 directions below the horizon) at the same distance, and the 26
+/// directions of a 3 x 3 x 3 grid at half the distance, closer in, where the model's middle
+/// fills twice the width.
+pub fn pruning_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
+    let size = OTHER_VIEW_SIZE;
     let mut out = ring_cameras(context, up, size, (&directions(5), 1.0), |d| d.dot(up) < -1e-6)?;
     out.extend(ring_cameras(context, up, size, (&directions(3), 0.5), |_| true)?);
     Ok(out)
@@ -112,25 +114,9 @@ pub struct Importance {
     pub weights: Vec<f32>,
     /// What dropping it costs in the view that loses most ([`prune_costs`]).
     pub prune_costs: Vec<f32>,
-    /// Views rendered: the [`cameras`], then the others pruning holds on.
-    pub views: usize,
 }
 
 impl Importance {
-    /// Renders the model from the [`cameras`], at [`VIEW_SIZE`] pixels, and, for `pruning`, the
-    /// other views pruning must hold on, at [`OTHER_VIEW_SIZE`] (without, the costs are from
-    /// the [`cameras`] alone).
-    pub fn measure(
-        g: &Gaussians,
-        (context, up): (&StreamContext, Vec3),
-        options: &RenderOptions,
-        pruning: bool,
-    ) -> Result<Self, CameraError> {
-        let class_views = cameras(context, up, VIEW_SIZE)?;
-        let other_views = if pruning { other_cameras(context, up, OTHER_VIEW_SIZE)? } else { Vec::new() };
-        Ok(Self::of_views(g, (&class_views, &other_views), options))
-    }
-
     /// The weights from `class_views`, the pruning costs from those and `other_views`.
     pub fn of_views(
         g: &Gaussians,
@@ -141,7 +127,7 @@ impl Importance {
         let per_view: Vec<Vec<f32>> = all.par_iter().map(|camera| view_weights(g, camera, options)).collect();
         let weights = sum_in_order(&per_view[..class_views.len()], g.len());
         let pixels: Vec<f32> = all.iter().map(|c| c.width as f32 * c.height as f32).collect();
-        Self { prune_costs: prune_costs(&per_view, &pixels), weights, views: all.len() }
+        Self { prune_costs: prune_costs(&per_view, &pixels), weights }
     }
 }
 
@@ -255,7 +241,7 @@ mod tests {
     #[test]
     fn pruning_also_holds_below_the_horizon_and_closer_in() {
         let context = StreamContext { center: [0.0; 3], scale: 2.0, background: [0.0; 3] };
-        let others = other_cameras(&context, Vec3::NEG_Y, 64).unwrap();
+        let others = pruning_cameras(&context, Vec3::NEG_Y).unwrap();
         assert_eq!(others.len(), 41 + 26);
         let distances: Vec<f32> = others.iter().map(|c| c.center().length()).collect();
         assert!(distances[..41].iter().all(|d| (d - 2.0).abs() < 1e-5), "{distances:?}");

@@ -208,19 +208,24 @@ fn plan_coding(
         return Ok(plan);
     }
     let start = Instant::now();
-    let measured = Importance::measure(gaussians, (context, Vec3::from(job.up)), options, tools.prune_faint)
-        .with_context(|| views_problem("importance", context))?;
+    let up = Vec3::from(job.up);
+    let placed = || views_problem("importance", context);
+    let cameras = importance::cameras(context, up, importance::VIEW_SIZE).with_context(placed)?;
+    let others =
+        if tools.prune_faint { importance::pruning_cameras(context, up).with_context(placed)? } else { Vec::new() };
+    let measured = Importance::of_views(gaussians, (&cameras, &others), options);
     let hidden = measured.weights.iter().filter(|&&w| w == 0.0).count();
     say!(
-        "importance: {} views of {size}x{size} in {:.1} s; {hidden} of {} Gaussians never blended in the upper ones",
-        measured.views,
+        "importance: {} views ({} of {size}x{size}, {} of {other}x{other}) in {:.1} s; {hidden} of {} Gaussians \
+         never blended in the upper ones",
+        cameras.len() + others.len(),
+        cameras.len(),
+        others.len(),
         start.elapsed().as_secs_f64(),
         gaussians.len(),
         size = importance::VIEW_SIZE,
+        other = importance::OTHER_VIEW_SIZE,
     );
-    let cameras = importance::cameras(context, Vec3::from(job.up), importance::VIEW_SIZE)
-        .with_context(|| views_problem("importance", context))?;
-
     let (weights, prune_costs) = (&measured.weights[..], tools.prune_faint.then_some(&measured.prune_costs[..]));
     if tools.search_steps {
         let start = Instant::now();
