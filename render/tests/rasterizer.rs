@@ -491,20 +491,31 @@ fn vectorized_blending_matches_the_scalar_path() {
 #[test]
 fn splat_weights_add_up_to_each_pixels_coverage() {
     // Per pixel the blended weights T * alpha sum to 1 - T_final, so over the image the
-    // Gaussians' weights sum to the total coverage; a Gaussian out of view weighs 0.
+    // Gaussians' weights sum to the total coverage; a Gaussian out of view weighs 0. On every
+    // blend path, each against its own render.
     let mut g = scene(12, 400);
     g.push([0.0, 0.0, -5.0], [-2.0; 3], [1.0, 0.0, 0.0, 0.0], 3.0, &[0.5; 12]);
     let cam = camera(96, 72, 80.0, 80.0, 48.0, 36.0);
-    let options = RenderOptions { blend: BlendPath::Scalar, ..Default::default() };
-    let r = rasterize(&g, &cam, &options);
-    let weights = splat_weights(&r.bins, &r.splats, &options, g.len());
-    assert_eq!(weights.len(), g.len());
-    assert_eq!(weights[g.len() - 1], 0.0, "behind the camera");
-    assert!(weights.iter().all(|&w| w >= 0.0));
-    let coverage: f64 = r.transmittance.iter().map(|&t| 1.0 - f64::from(t)).sum();
-    let total: f64 = weights.iter().map(|&w| f64::from(w)).sum();
-    assert!(coverage > 100.0, "the scene covers {coverage} pixels");
-    assert!((total - coverage).abs() < 1e-4 * coverage, "{total} against {coverage}");
+    let mut per_path = Vec::new();
+    for blend in [BlendPath::Scalar, BlendPath::Vectorized, BlendPath::Portable] {
+        let options = RenderOptions { blend, ..Default::default() };
+        let r = rasterize(&g, &cam, &options);
+        let weights = splat_weights(&r.bins, &r.splats, &options, g.len());
+        assert_eq!(weights.len(), g.len());
+        assert_eq!(weights[g.len() - 1], 0.0, "{blend:?}: behind the camera");
+        assert!(weights.iter().all(|&w| w >= 0.0), "{blend:?}");
+        let coverage: f64 = r.transmittance.iter().map(|&t| 1.0 - f64::from(t)).sum();
+        let total: f64 = weights.iter().map(|&w| f64::from(w)).sum();
+        assert!(coverage > 100.0, "{blend:?}: the scene covers {coverage} pixels");
+        assert!((total - coverage).abs() < 1e-4 * coverage, "{blend:?}: {total} against {coverage}");
+        per_path.push(weights);
+    }
+    // The vector lanes give the same bits on AVX2 and portable vectors, and each Gaussian's
+    // weight is within the cheaper falloff's rounding of the scalar path's.
+    assert_eq!(per_path[1], per_path[2], "AVX2 and portable lanes differ");
+    for (i, (s, v)) in per_path[0].iter().zip(&per_path[1]).enumerate() {
+        assert!((s - v).abs() <= 1e-4 * s.max(1.0), "Gaussian {i}: scalar {s}, vectorized {v}");
+    }
 }
 
 #[test]

@@ -7,7 +7,7 @@
 
 use super::project::Splat;
 use super::tiles::{ListOrder, TileBins};
-use super::{Cutoff, RenderOptions, TILE_SIZE};
+use super::{BlendPath, Cutoff, RenderOptions, TILE_SIZE, weights_simd};
 use pwgs_codec::portable_math::exp_f32;
 
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
@@ -141,9 +141,19 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
 
 /// Each Gaussian's summed blending weight over the bins' window, `sum T * alpha` over the
 /// pixels its splat is blended into (what it adds to the image per unit of colour), for
-/// Gaussians `0 .. gaussians` (0 for those without a splat). The same decisions as
-/// [`blend_band`]'s; tiles in order on one thread, so the sums do not depend on threads.
+/// Gaussians `0 .. gaussians` (0 for those without a splat), on the blend path `options` names:
+/// the same decisions as that path's blend. Tiles in order on one thread, so the sums do not
+/// depend on threads.
 pub fn splat_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions, gaussians: usize) -> Vec<f32> {
+    match options.blend {
+        BlendPath::Scalar => scalar_weights(bins, splats, options, gaussians),
+        BlendPath::Vectorized => weights_simd::splat_weights(bins, splats, options, gaussians, false),
+        BlendPath::Portable => weights_simd::splat_weights(bins, splats, options, gaussians, true),
+    }
+}
+
+/// [`splat_weights`] one pixel at a time, with [`blend_band`]'s decisions.
+fn scalar_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions, gaussians: usize) -> Vec<f32> {
     let mut weights = vec![0.0f32; gaussians];
     for t in 0..(bins.tiles_x * bins.tiles_y) as usize {
         walk_tile(bins, t, splats, options, |_, s, _, alpha, trans| weights[s.index as usize] += alpha * trans);

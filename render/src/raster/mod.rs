@@ -19,6 +19,7 @@ pub mod project_f32;
 pub mod sh;
 pub mod tile_lists;
 pub mod tiles;
+pub mod weights_simd;
 
 use rayon::prelude::*;
 
