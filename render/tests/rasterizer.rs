@@ -521,37 +521,44 @@ fn splat_weights_add_up_to_each_pixels_coverage() {
 #[test]
 fn the_colour_map_is_the_render_and_its_transpose_is_its_adjoint() {
     // Degree 0 and colours in [0, 1] (no clamping): the render is the map of the colours plus
-    // the background times the final transmittance.
+    // the background times the final transmittance. On every blend path, against its own
+    // render; 100 pixels wide, so that the last tile column is 4 pixels wide.
     let g = random_gaussians(&mut Rng(13), 400, 0);
-    let cam = camera(96, 72, 80.0, 80.0, 48.0, 36.0);
-    let options = RenderOptions { blend: BlendPath::Scalar, background: [0.2, 0.3, 0.4], ..Default::default() };
-    let r = rasterize(&g, &cam, &options);
-    let map = ColourMap { bins: &r.bins, splats: &r.splats, options: &options };
-    let colours: Vec<[f32; 3]> = (0..g.len()).map(|i| std::array::from_fn(|c| SH_C0 * g.sh_of(i)[c] + 0.5)).collect();
-    let mut image = map.apply(&colours);
-    for (p, &t) in r.transmittance.iter().enumerate() {
-        (0..3).for_each(|c| image[p * 3 + c] += t * options.background[c]);
+    let cam = camera(100, 72, 80.0, 80.0, 50.0, 36.0);
+    let mut transposes = Vec::new();
+    for blend in [BlendPath::Scalar, BlendPath::Vectorized, BlendPath::Portable] {
+        let options = RenderOptions { blend, background: [0.2, 0.3, 0.4], ..Default::default() };
+        let r = rasterize(&g, &cam, &options);
+        let map = ColourMap { bins: &r.bins, splats: &r.splats, options: &options };
+        let colours: Vec<[f32; 3]> =
+            (0..g.len()).map(|i| std::array::from_fn(|c| SH_C0 * g.sh_of(i)[c] + 0.5)).collect();
+        let mut image = map.apply(&colours);
+        for (p, &t) in r.transmittance.iter().enumerate() {
+            (0..3).for_each(|c| image[p * 3 + c] += t * options.background[c]);
+        }
+        let worst = image.iter().zip(&r.color.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "{blend:?}: the map differs from the render by {worst}");
+        assert!(r.transmittance.iter().filter(|&&t| t < 0.5).count() > 500, "the scene covers too little");
+        // <A v, u> = <v, A^T u>, and the squares are each Gaussian's |A e_i|^2.
+        let mut rng = Rng(14);
+        let v: Vec<[f32; 3]> = (0..g.len()).map(|_| std::array::from_fn(|_| rng.uniform(-1.0, 1.0))).collect();
+        let u: Vec<f32> = (0..image.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let (transposed, squares) = map.transpose(&u, g.len());
+        let lhs: f64 = map.apply(&v).iter().zip(&u).map(|(a, b)| f64::from(*a) * f64::from(*b)).sum();
+        let rhs: f64 =
+            v.iter().flatten().zip(transposed.iter().flatten()).map(|(a, b)| f64::from(*a) * f64::from(*b)).sum();
+        assert!((lhs - rhs).abs() < 1e-4 * lhs.abs().max(1.0), "{blend:?}: {lhs} against {rhs}");
+        for i in [0, 57, 399] {
+            let mut unit = vec![[0.0f32; 3]; g.len()];
+            unit[i] = [1.0, 0.0, 0.0];
+            let norm: f64 = map.apply(&unit).iter().map(|&a| f64::from(a) * f64::from(a)).sum();
+            assert!(
+                (norm - f64::from(squares[i])).abs() <= 1e-5 * norm.max(1e-3),
+                "{blend:?}, Gaussian {i}: {norm} against {}",
+                squares[i]
+            );
+        }
+        transposes.push((transposed, squares));
     }
-    let worst = image.iter().zip(&r.color.data).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-    assert!(worst < 1e-5, "the map differs from the render by {worst}");
-    assert!(r.transmittance.iter().filter(|&&t| t < 0.5).count() > 500, "the scene covers too little");
-    // <A v, u> = <v, A^T u>, and the squares are each Gaussian's |A e_i|^2.
-    let mut rng = Rng(14);
-    let v: Vec<[f32; 3]> = (0..g.len()).map(|_| std::array::from_fn(|_| rng.uniform(-1.0, 1.0))).collect();
-    let u: Vec<f32> = (0..image.len()).map(|_| rng.uniform(-1.0, 1.0)).collect();
-    let (transposed, squares) = map.transpose(&u, g.len());
-    let lhs: f64 = map.apply(&v).iter().zip(&u).map(|(a, b)| f64::from(*a) * f64::from(*b)).sum();
-    let rhs: f64 =
-        v.iter().flatten().zip(transposed.iter().flatten()).map(|(a, b)| f64::from(*a) * f64::from(*b)).sum();
-    assert!((lhs - rhs).abs() < 1e-4 * lhs.abs().max(1.0), "{lhs} against {rhs}");
-    for i in [0, 57, 399] {
-        let mut unit = vec![[0.0f32; 3]; g.len()];
-        unit[i] = [1.0, 0.0, 0.0];
-        let norm: f64 = map.apply(&unit).iter().map(|&a| f64::from(a) * f64::from(a)).sum();
-        assert!(
-            (norm - f64::from(squares[i])).abs() <= 1e-5 * norm.max(1e-3),
-            "Gaussian {i}: {norm} against {}",
-            squares[i]
-        );
-    }
+    assert_eq!(transposes[1], transposes[2], "AVX2 and portable lanes differ");
 }

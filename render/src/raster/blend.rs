@@ -7,7 +7,7 @@
 
 use super::project::Splat;
 use super::tiles::{ListOrder, TileBins};
-use super::{BlendPath, Cutoff, RenderOptions, TILE_SIZE, weights_simd};
+use super::{BlendPath, Cutoff, RenderOptions, TILE_SIZE, linear_simd};
 use pwgs_codec::portable_math::exp_f32;
 
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
@@ -147,8 +147,8 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
 pub fn splat_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions, gaussians: usize) -> Vec<f32> {
     match options.blend {
         BlendPath::Scalar => scalar_weights(bins, splats, options, gaussians),
-        BlendPath::Vectorized => weights_simd::splat_weights(bins, splats, options, gaussians, false),
-        BlendPath::Portable => weights_simd::splat_weights(bins, splats, options, gaussians, true),
+        BlendPath::Vectorized => linear_simd::splat_weights(bins, splats, options, gaussians, false),
+        BlendPath::Portable => linear_simd::splat_weights(bins, splats, options, gaussians, true),
     }
 }
 
@@ -186,8 +186,32 @@ impl ColourMap<'_> {
         }
     }
 
-    /// The image `sum w values[i]` over the window (no background), RGB interleaved.
+    /// The image `sum w values[i]` over the window (no background), RGB interleaved, on the
+    /// blend path the options name.
     pub fn apply(&self, values: &[[f32; 3]]) -> Vec<f32> {
+        let (bins, splats, options) = (self.bins, self.splats, self.options);
+        match options.blend {
+            BlendPath::Scalar => self.scalar_apply(values),
+            BlendPath::Vectorized => linear_simd::colour_map_apply(bins, splats, options, values, false),
+            BlendPath::Portable => linear_simd::colour_map_apply(bins, splats, options, values, true),
+        }
+    }
+
+    /// Per Gaussian (`0 .. gaussians`), `sum w image` over the pixels it is blended into, and
+    /// `sum w^2` (the diagonal of the map's normal matrix), on the blend path the options name.
+    pub fn transpose(&self, image: &[f32], gaussians: usize) -> (Vec<[f32; 3]>, Vec<f32>) {
+        let (bins, splats, options) = (self.bins, self.splats, self.options);
+        match options.blend {
+            BlendPath::Scalar => self.scalar_transpose(image, gaussians),
+            BlendPath::Vectorized => {
+                linear_simd::colour_map_transpose(bins, splats, options, (image, gaussians), false)
+            }
+            BlendPath::Portable => linear_simd::colour_map_transpose(bins, splats, options, (image, gaussians), true),
+        }
+    }
+
+    /// [`apply`](Self::apply) one pixel at a time.
+    fn scalar_apply(&self, values: &[[f32; 3]]) -> Vec<f32> {
         let w = self.bins.window;
         let mut image = vec![0.0f32; w.width as usize * w.height as usize * 3];
         self.walk(|p, s, weight| {
@@ -197,9 +221,8 @@ impl ColourMap<'_> {
         image
     }
 
-    /// Per Gaussian (`0 .. gaussians`), `sum w image` over the pixels it is blended into, and
-    /// `sum w^2` (the diagonal of the map's normal matrix).
-    pub fn transpose(&self, image: &[f32], gaussians: usize) -> (Vec<[f32; 3]>, Vec<f32>) {
+    /// [`transpose`](Self::transpose) one pixel at a time.
+    fn scalar_transpose(&self, image: &[f32], gaussians: usize) -> (Vec<[f32; 3]>, Vec<f32>) {
         let mut sums = vec![[0.0f32; 3]; gaussians];
         let mut squares = vec![0.0f32; gaussians];
         self.walk(|p, s, weight| {

@@ -13,13 +13,13 @@ pub mod alpha_lanes;
 pub mod blend;
 pub mod blend_simd;
 pub mod lanes;
+pub mod linear_simd;
 pub mod opaque_tiles;
 pub mod project;
 pub mod project_f32;
 pub mod sh;
 pub mod tile_lists;
 pub mod tiles;
-pub mod weights_simd;
 
 use rayon::prelude::*;
 
