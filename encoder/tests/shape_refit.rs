@@ -7,7 +7,7 @@ use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::random::{SplitMix64, axis_camera, random_gaussians};
 use pwgs_encoder::metrics::psnr::psnr;
-use pwgs_encoder::plain::colour_refit::refit_colours;
+use pwgs_encoder::plain::colour_refit::{FULL_REFIT, refit_colours};
 use pwgs_encoder::plain::compress::{Coding, QuantizerSettings, StreamContext, compress_to_size};
 use pwgs_encoder::plain::importance::Importance;
 use pwgs_encoder::plain::shape_refit::refit_shapes;
@@ -50,7 +50,7 @@ fn refitted_shapes_render_closer_at_the_same_positions() {
     assert_eq!(a.means, b.means, "the same Gaussians at the same decoded positions");
 
     // The colours refitted after the shapes (to the input's renders) against refitted alone.
-    let colours = |model: &Gaussians| refit_colours((model, &g), coding, &context, (&cameras, &options), 8).unwrap().0;
+    let colours = |model: &Gaussians| refit_colours((model, &g), coding, &context, (&cameras, &options), FULL_REFIT).unwrap().0;
     let (colours_alone, both) = (stream(&colours(&g)), stream(&colours(&shaped)));
     for camera in &cameras {
         let truth = render(&g, camera, &options);

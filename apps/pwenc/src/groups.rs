@@ -10,6 +10,7 @@ use clap::Args;
 use pwgs_cli::values::parse_vector;
 use pwgs_encoder::anchor::train::StageTwoLambda;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric};
+use pwgs_encoder::plain::colour_refit::FULL_REFIT;
 use pwgs_encoder::plain::compress::{DEFAULT_QUALITY, MAX_QUALITY};
 use pwgs_encoder::session::{DEFAULT_EFFORT, MAX_EFFORT, Tools};
 use pwgs_encoder::train::device::DeviceChoice;
@@ -78,8 +79,8 @@ pub(crate) struct ImportArgs {
     /// Refit the colours to the quantized geometry (with importance classes).
     ///
     /// So that the stream renders closest to the model on the importance views (least
-    /// squares, the geometry held; 8 conjugate-gradient iterations), before they are
-    /// quantized. Not with --target-bytes (the refit is for the Gaussians the quality keeps).
+    /// squares, the geometry held; 8 conjugate-gradient iterations, then rounded in quarters
+    /// with the rest refitted between), before they are quantized. Not with --target-bytes (the refit is for the Gaussians the quality keeps).
     #[arg(long, conflicts_with = "target_bytes", hide_short_help = true)]
     pub(crate) refit_colours: bool,
     /// Refit the shapes to the quantized positions for EPOCHS (with importance classes).
@@ -101,15 +102,12 @@ impl ImportArgs {
             prune_faint: self.prune_faint,
             search_steps: self.search_steps,
             refit_shapes: self.refit_shapes.map(usize::from),
-            refit_colours: self.refit_colours.then_some(COLOUR_REFIT_ITERATIONS),
+            refit_colours: self.refit_colours.then_some(FULL_REFIT),
         };
         let tools = Tools::of_effort(self.effort).with(given);
         if target_size { tools.without_refits() } else { tools }
     }
 }
-
-/// `--refit-colours`' conjugate-gradient iterations: effort 4's.
-const COLOUR_REFIT_ITERATIONS: usize = 8;
 
 /// Options of the plain base (and `--quality`, which an import reads too).
 #[derive(Args)]

@@ -31,17 +31,28 @@ pub struct RefitOutcome {
     pub mse_after: Vec<f64>,
 }
 
-/// `g` with the colours (the SH DC terms) of the Gaussians `coding` keeps refitted, over
-/// `iterations` iterations, so that its reconstruction renders closest to `reference` on
-/// `cameras`: the model itself, or the input when `g` is already refitted
-/// ([`crate::plain::shape_refit`]) and no longer renders like it.
+/// How hard a refit works: CGLS iterations, then the turns in which the refitted colours are
+/// rounded, with [`TURN_ITERATIONS`] after each turn but the last. Each iteration is a pass of
+/// the colour map and one of its adjoint over every view; a turn costs a reconstruction too.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub struct ColourRefit {
+    pub iterations: usize,
+    /// 1: the refitted colours go through the quantizer at once.
+    pub rounding_turns: usize,
+}
+
+/// `g` with the colours (the SH DC terms) of the Gaussians `coding` keeps refitted as `refit`
+/// says, so that its reconstruction renders closest to `reference` on `cameras`: the model
+/// itself, or the input when `g` is already refitted ([`crate::plain::shape_refit`]) and no
+/// longer renders like it.
 pub fn refit_colours(
     (g, reference): (&Gaussians, &Gaussians),
     coding: Coding,
     context: &StreamContext,
     (cameras, options): (&[Camera], &RenderOptions),
-    iterations: usize,
+    refit: ColourRefit,
 ) -> Result<(Gaussians, RefitOutcome), CompressError> {
+    let turns = refit.rounding_turns.max(1);
     let (keep, decoded) = reconstruction(g, coding, context)?;
     let n = decoded.len();
     let (geometry, mut residuals): (Vec<_>, Vec<Vec<f32>>) = cameras
@@ -61,15 +72,15 @@ pub fn refit_colours(
     // The colour changes being fitted, and the colours already rounded (None: still free).
     let mut change = vec![[0.0f32; 3]; n];
     let mut rounded: Vec<Option<[f32; 3]>> = vec![None; n];
-    fit.cgls(&mut change, &mut residuals, &rounded, iterations);
-    // Rounding in turns: each turn rounds every ROUNDING_TURNS-th of the free colours to what
-    // the stream will hold, takes what that moved out of the residuals and refits the rest,
-    // which make up for it; the last turn's colours are rounded by the stream itself.
-    for turn in 0..ROUNDING_TURNS - 1 {
+    fit.cgls(&mut change, &mut residuals, &rounded, refit.iterations);
+    // Rounding in turns: each turn rounds every `turns`-th of the free colours to what the
+    // stream will hold, takes what that moved out of the residuals and refits the rest, which
+    // make up for it; the last turn's colours are rounded by the stream itself.
+    for turn in 0..turns - 1 {
         // Colours change neither which Gaussians a stream keeps nor their order.
         let coded = reconstruction(&with_colours(g, (&keep, &decoded), &change, &rounded), coding, context)?.1;
         let mut moved = vec![[0.0f32; 3]; n];
-        for r in (turn..n).step_by(ROUNDING_TURNS) {
+        for r in (turn..n).step_by(turns) {
             let value: [f32; 3] = coded.sh_of(r)[..3].try_into().expect("three DC terms");
             let target: [f32; 3] = std::array::from_fn(|c| (value[c] - decoded.sh_of(r)[c]) * SH_C0);
             moved[r] = std::array::from_fn(|c| target[c] - change[r][c]);
@@ -186,10 +197,10 @@ fn dot(a: &[[f32; 3]], b: &[[f32; 3]]) -> [f64; 3] {
     out
 }
 
-/// Turns in which the refitted colours are rounded (see [`refit_colours`]): on biker
-/// (quality 11, 57 views) rounding them in halves with 3 iterations between lifts the orbit's
-/// PSNR by 0.19 dB, in quarters by 0.28 dB, for 0.1-0.2% more bytes.
-const ROUNDING_TURNS: usize = 4;
+/// The refit of `pwenc --refit-colours` and the highest effort levels. On biker (quality 11,
+/// 57 views) rounding in halves with 3 iterations between lifts the orbit's PSNR by 0.19 dB, in
+/// quarters by 0.28 dB, for 0.1-0.2% more bytes and about twice the refit's time.
+pub const FULL_REFIT: ColourRefit = ColourRefit { iterations: 8, rounding_turns: 4 };
 /// Iterations refitting the free colours after each turn's rounding.
 const TURN_ITERATIONS: usize = 3;
 

@@ -1,8 +1,10 @@
 //! `pwenc --from MODEL --effort 0..9`: how hard an import works for a smaller stream at its
 //! quality, as codecs' presets do (zstd's levels, `cwebp -m`). Each level is a fixed set of the
-//! import's tools; the individual options add tools to it. The default and the levels up to 3
-//! come from the measured table in docs/results/splat-formats.md ("Effort levels"), the levels
-//! above from what each tool brought there ("What each tool brings") and its time.
+//! import's tools; the individual options add tools to it. The levels up to 5 come from the
+//! measured table in docs/results/splat-formats.md ("Effort levels"), those above from what
+//! each tool brought there ("What each tool brings") and its time.
+
+use crate::plain::colour_refit::{ColourRefit, FULL_REFIT};
 
 /// The tools of an import ([`ModelImport`](super::ModelImport)'s switches).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -15,8 +17,8 @@ pub struct Tools {
     pub search_steps: bool,
     /// Refit the shapes to the quantized positions: this many epochs.
     pub refit_shapes: Option<usize>,
-    /// Refit the colours to the quantized geometry: this many conjugate-gradient iterations.
-    pub refit_colours: Option<usize>,
+    /// Refit the colours to the quantized geometry, this hard.
+    pub refit_colours: Option<ColourRefit>,
 }
 
 /// The level `pwenc --from` takes by default: the smallest streams within about 30 s for a
@@ -30,29 +32,29 @@ impl Tools {
         Self { importance: false, prune_faint: false, search_steps: false, refit_shapes: None, refit_colours: None };
 
     /// The tools of `effort` (levels above [`MAX_EFFORT`] are [`MAX_EFFORT`]): 0 uniform steps,
-    /// 1 importance classes, 2 with pruning, 3 and 4 with a colour refit of 2 and 8
-    /// iterations, 5 with the step search, 6 and 7 with a shape refit of 6 and 12 epochs, 8
-    /// with 16 colour iterations, 9 with 24 shape epochs. The colour refit needs all 57
-    /// importance views at 512x512: on every third of them at 256x256 (a tenth of the time) it
-    /// fits those views and codes guitar and biker larger at a lower PSNR than level 2. (On
-    /// biker at quality 11, 8 colour iterations reach 57.81 dB on the orbit after quantizing,
-    /// 16 reach 57.87 dB in twice the time.)
+    /// 1 importance classes, 2 with pruning, 3 with a colour refit of 2 iterations, 4 of 8, 5
+    /// of 8 rounded in quarters ([`FULL_REFIT`]), 6 with the step search, 7 and 8 with a shape
+    /// refit of 6 and 12 epochs (8 with 16 colour iterations), 9 with 24 shape epochs. Each
+    /// level's time and bytes are in docs/results/splat-formats.md ("Effort levels"). The
+    /// colour refit needs all 57 importance views at 512x512: on every other one it fits those
+    /// views and codes biker larger at a lower PSNR than without a refit.
     pub fn of_effort(effort: u8) -> Self {
         let effort = effort.min(MAX_EFFORT);
         let at = |level: u8| effort >= level;
         let refit_colours = match effort {
             0..=2 => None,
-            3 => Some(2),
-            4..=7 => Some(8),
-            _ => Some(16),
+            3 => Some(ColourRefit { iterations: 2, rounding_turns: 1 }),
+            4 => Some(ColourRefit { iterations: 8, rounding_turns: 1 }),
+            5..=7 => Some(FULL_REFIT),
+            _ => Some(ColourRefit { iterations: 16, ..FULL_REFIT }),
         };
         let refit_shapes = match effort {
-            0..=5 => None,
-            6 => Some(6),
-            7 | 8 => Some(12),
+            0..=6 => None,
+            7 => Some(6),
+            8 => Some(12),
             _ => Some(24),
         };
-        Self { importance: at(1), prune_faint: at(2), search_steps: at(5), refit_shapes, refit_colours }
+        Self { importance: at(1), prune_faint: at(2), search_steps: at(6), refit_shapes, refit_colours }
     }
 
     /// These tools and `more`'s together (the larger count where both refit).
@@ -96,8 +98,8 @@ mod tests {
         let search = Tools { search_steps: true, ..Tools::NONE };
         let tools = Tools::of_effort(0).with(search);
         assert!(tools.importance && tools.search_steps && !tools.prune_faint);
-        let more = Tools::of_effort(3).with(Tools { refit_colours: Some(8), ..Tools::NONE });
-        assert_eq!(more.refit_colours, Some(8));
+        let more = Tools::of_effort(3).with(Tools { refit_colours: Some(FULL_REFIT), ..Tools::NONE });
+        assert_eq!(more.refit_colours, Some(FULL_REFIT));
         let pruned = Tools::of_effort(3).with(Tools { prune_faint: true, ..Tools::NONE });
         assert_eq!(pruned, Tools::of_effort(3));
         assert_eq!(

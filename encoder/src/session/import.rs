@@ -253,11 +253,11 @@ fn plan_coding(
         plan.refitted = Some(refitted);
         plan.shape_refit = Some(outcome);
     }
-    if let Some(iterations) = tools.refit_colours {
+    if let Some(refit) = tools.refit_colours {
         let start = Instant::now();
         let model = plan.refitted.as_ref().unwrap_or(gaussians);
         let (refitted, outcome) =
-            colour_refit::refit_colours((model, gaussians), coding, context, (&cameras, options), iterations)?;
+            colour_refit::refit_colours((model, gaussians), coding, context, (&cameras, options), refit)?;
         say!(
             "colour refit: {} Gaussians on {} views in {:.1} s: {:.2} dB -> {} dB (before quantizing the colours)",
             outcome.gaussians,
