@@ -558,6 +558,11 @@ fn the_colour_map_is_the_render_and_its_transpose_is_its_adjoint() {
                 squares[i]
             );
         }
+        // The fused walk gives the map's image and the adjoint of that image, as the two
+        // passes do.
+        let (image, normal) = map.apply_and_normal(&v, g.len());
+        assert_eq!(image, map.apply(&v), "{blend:?}");
+        assert_eq!(normal, map.transpose(&image, g.len()).0, "{blend:?}");
         transposes.push((transposed, squares));
     }
     assert_eq!(transposes[1], transposes[2], "AVX2 and portable lanes differ");

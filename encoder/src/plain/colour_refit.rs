@@ -145,7 +145,25 @@ impl<'a> LinearFit<'a> {
             .collect()
     }
 
+    /// Every view's map applied to `direction`, and the adjoint of each applied to its image,
+    /// summed over the views in view order.
+    fn apply_and_normal(&self, direction: &[[f32; 3]]) -> (Vec<Vec<f32>>, Vec<[f32; 3]>) {
+        let n = self.gaussians;
+        let parts: Vec<_> = self.maps.par_iter().map(|m| m.apply_and_normal(direction, n)).collect();
+        let mut normal = vec![[0.0f32; 3]; n];
+        let images = parts
+            .into_iter()
+            .map(|(image, part)| {
+                normal.iter_mut().zip(part).for_each(|(a, b)| a.iter_mut().zip(b).for_each(|(a, b)| *a += b));
+                image
+            })
+            .collect();
+        (images, normal)
+    }
+
     /// `iterations` of CGLS from `change`, moving the free colours and the `residuals` with them.
+    /// The adjoint of the residuals is carried along (`A^T r` less the step times `A^T A p`), so
+    /// that an iteration walks each view once.
     fn cgls(
         &mut self,
         change: &mut [[f32; 3]],
@@ -153,7 +171,7 @@ impl<'a> LinearFit<'a> {
         rounded: &[Option<[f32; 3]>],
         iterations: usize,
     ) {
-        let (s, squares) = self.transpose(residuals);
+        let (mut s, squares) = self.transpose(residuals);
         if self.diagonal.is_empty() {
             self.diagonal = squares;
         }
@@ -161,7 +179,7 @@ impl<'a> LinearFit<'a> {
         let mut direction = z.clone();
         let mut gamma = dot(&s, &z);
         for _ in 0..iterations {
-            let images: Vec<Vec<f32>> = self.maps.par_iter().map(|m| m.apply(&direction)).collect();
+            let (images, normal) = self.apply_and_normal(&direction);
             let mut energy = [0.0f64; 3];
             for (i, v) in images.iter().flatten().enumerate() {
                 energy[i % 3] += f64::from(*v) * f64::from(*v);
@@ -175,7 +193,9 @@ impl<'a> LinearFit<'a> {
                 r.iter_mut().zip(q).enumerate().for_each(|(i, (r, q))| *r -= step[i % 3] * q);
             }
             self.mse_after.push(self.mse(residuals));
-            let (s, _) = self.transpose(residuals);
+            for (s, q) in s.iter_mut().zip(&normal) {
+                (0..3).for_each(|c| s[c] -= step[c] * q[c]);
+            }
             z = self.precondition(&s, rounded);
             let next = dot(&s, &z);
             let beta: [f32; 3] =

@@ -210,6 +210,22 @@ impl ColourMap<'_> {
         }
     }
 
+    /// The map applied to `values`, and its adjoint applied to that image: `(A v, A^T A v)`
+    /// for Gaussians `0 .. gaussians`. On the vector lanes in one walk (the falloffs evaluated
+    /// once); on the scalar path as [`apply`](Self::apply) then [`transpose`](Self::transpose).
+    pub fn apply_and_normal(&self, values: &[[f32; 3]], gaussians: usize) -> (Vec<f32>, Vec<[f32; 3]>) {
+        let (bins, splats, options) = (self.bins, self.splats, self.options);
+        match options.blend {
+            BlendPath::Scalar => {
+                let image = self.scalar_apply(values);
+                let normal = self.scalar_transpose(&image, gaussians).0;
+                (image, normal)
+            }
+            BlendPath::Vectorized => linear_simd::colour_map_normal(bins, splats, options, (values, gaussians), false),
+            BlendPath::Portable => linear_simd::colour_map_normal(bins, splats, options, (values, gaussians), true),
+        }
+    }
+
     /// [`apply`](Self::apply) one pixel at a time.
     fn scalar_apply(&self, values: &[[f32; 3]]) -> Vec<f32> {
         let w = self.bins.window;

@@ -305,3 +305,80 @@ impl LaneKernel for TransposeKernel<'_> {
         (visit.sums, visit.squares)
     }
 }
+
+/// The colour map applied to `values` and, in the same walk, its adjoint applied to that image:
+/// `(A v, A^T A v)` over the bins' window (see [`colour_map_apply`], [`colour_map_transpose`]).
+/// A pixel belongs to one tile, so its value is complete once the tile's splats are walked:
+/// each splat's weights are kept for the tile and replayed against it, and the falloffs are
+/// evaluated once instead of twice (conjugate gradients need both products every iteration).
+pub fn colour_map_normal(
+    bins: &TileBins,
+    splats: &[Splat],
+    options: &RenderOptions,
+    (values, gaussians): (&[[f32; 3]], usize),
+    portable: bool,
+) -> (Vec<f32>, Vec<[f32; 3]>) {
+    run_kernel(NormalKernel { bins, splats, options, values, gaussians }, portable)
+}
+
+struct NormalKernel<'a> {
+    bins: &'a TileBins,
+    splats: &'a [Splat],
+    options: &'a RenderOptions,
+    values: &'a [[f32; 3]],
+    gaussians: usize,
+}
+
+/// [`Apply`], keeping each chunk's weights (splat, tile offset, lanes) until the tile is done,
+/// then summing each splat's weighted image values in its lanes, in the walk's order.
+struct Normal<'a> {
+    apply: Apply<'a>,
+    kept: Vec<(u32, usize, [f32; LANES])>,
+    normal: Vec<[f32; 3]>,
+}
+
+impl<L: Lanes8> Visit<L> for Normal<'_> {
+    #[inline(always)]
+    fn tile(&mut self, l: L, rect: [u32; 4]) {
+        Visit::<L>::tile(&mut self.apply, l, rect);
+        self.kept.clear();
+    }
+    #[inline(always)]
+    fn chunk(&mut self, l: L, s: &Splat, o: usize, weight: L::V) {
+        self.apply.chunk(l, s, o, weight);
+        self.kept.push((s.index, o, l.to_array(weight)));
+    }
+    #[inline(always)]
+    fn tile_done(&mut self, l: L, rect: [u32; 4]) {
+        let mut kept = self.kept.iter().peekable();
+        while let Some(&(index, o, weight)) = kept.next() {
+            let weight = l.load_array(weight);
+            let mut lanes = [l.splat(0.0); 3];
+            for c in 0..3 {
+                lanes[c] = l.mul(weight, load(l, &self.apply.tile[c], o));
+            }
+            // The splat's further chunks in this tile (they follow each other).
+            while let Some(&(_, o, weight)) = kept.next_if(|(next, ..)| *next == index) {
+                let weight = l.load_array(weight);
+                for c in 0..3 {
+                    lanes[c] = l.add(lanes[c], l.mul(weight, load(l, &self.apply.tile[c], o)));
+                }
+            }
+            (0..3).for_each(|c| self.normal[index as usize][c] += lane_sum(l, lanes[c]));
+        }
+        Visit::<L>::tile_done(&mut self.apply, l, rect);
+    }
+}
+
+impl LaneKernel for NormalKernel<'_> {
+    type Output = (Vec<f32>, Vec<[f32; 3]>);
+    #[inline(always)]
+    fn run<L: Lanes4d>(self, l: L) -> Self::Output {
+        let w = self.bins.window;
+        let image = vec![0.0; w.width as usize * w.height as usize * 3];
+        let apply = Apply { values: self.values, tile: [[0.0; STATE_LEN]; 3], image, window: [w.x0, w.y0, w.width] };
+        let mut visit = Normal { apply, kept: Vec::new(), normal: vec![[0.0; 3]; self.gaussians] };
+        walk(l, self.bins, self.splats, self.options, &mut visit);
+        (visit.apply.image, visit.normal)
+    }
+}
