@@ -17,7 +17,8 @@ fn refitted_colours_render_closer_with_the_same_geometry() {
     let context = StreamContext::from_gaussians(&g, [0.0; 3]);
     let settings = QuantizerSettings::for_quality(5);
     let coding = Coding { settings: &settings, weights: Some(&weights), prune_costs: None };
-    let (refitted, outcome) = refit_colours((&g, &g), coding, &context, (&cameras, &options), FULL_REFIT).unwrap();
+    let (refitted, outcome) =
+        refit_colours((&g, &g), coding, &context, (&cameras, &options), (FULL_REFIT, &|| {})).unwrap();
     // Conjugate gradients never go uphill; rounding a quarter of the colours does, then the
     // refit of the others climbs back down.
     assert_eq!(outcome.mse_after.len(), 8 + 3 * 3, "8 iterations, then 3 after each of 3 roundings");

@@ -50,8 +50,9 @@ fn refitted_shapes_render_closer_at_the_same_positions() {
     assert_eq!(a.means, b.means, "the same Gaussians at the same decoded positions");
 
     // The colours refitted after the shapes (to the input's renders) against refitted alone.
-    let colours =
-        |model: &Gaussians| refit_colours((model, &g), coding, &context, (&cameras, &options), FULL_REFIT).unwrap().0;
+    let colours = |model: &Gaussians| {
+        refit_colours((model, &g), coding, &context, (&cameras, &options), (FULL_REFIT, &|| {})).unwrap().0
+    };
     let (colours_alone, both) = (stream(&colours(&g)), stream(&colours(&shaped)));
     for camera in &cameras {
         let truth = render(&g, camera, &options);

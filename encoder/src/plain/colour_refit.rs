@@ -41,16 +41,24 @@ pub struct ColourRefit {
     pub rounding_turns: usize,
 }
 
+impl ColourRefit {
+    /// CGLS iterations in all, those after the rounding turns included.
+    pub fn steps(&self) -> usize {
+        self.iterations + (self.rounding_turns.max(1) - 1) * TURN_ITERATIONS
+    }
+}
+
 /// `g` with the colours (the SH DC terms) of the Gaussians `coding` keeps refitted as `refit`
 /// says, so that its reconstruction renders closest to `reference` on `cameras`: the model
 /// itself, or the input when `g` is already refitted ([`crate::plain::shape_refit`]) and no
-/// longer renders like it.
+/// longer renders like it. `done` is called after each CGLS iteration (a progress bar's tick;
+/// [`ColourRefit::steps`] in all).
 pub fn refit_colours(
     (g, reference): (&Gaussians, &Gaussians),
     coding: Coding,
     context: &StreamContext,
     (cameras, options): (&[Camera], &RenderOptions),
-    refit: ColourRefit,
+    (refit, done): (ColourRefit, &dyn Fn()),
 ) -> Result<(Gaussians, RefitOutcome), CompressError> {
     let turns = refit.rounding_turns.max(1);
     let (keep, decoded) = reconstruction(g, coding, context)?;
@@ -72,7 +80,7 @@ pub fn refit_colours(
     // The colour changes being fitted, and the colours already rounded (None: still free).
     let mut change = vec![[0.0f32; 3]; n];
     let mut rounded: Vec<Option<[f32; 3]>> = vec![None; n];
-    fit.cgls(&mut change, &mut residuals, &rounded, refit.iterations);
+    fit.cgls(&mut change, &mut residuals, &rounded, (refit.iterations, done));
     // Rounding in turns: each turn rounds every `turns`-th of the free colours to what the
     // stream will hold, takes what that moved out of the residuals and refits the rest, which
     // make up for it; the last turn's colours are rounded by the stream itself.
@@ -91,7 +99,7 @@ pub fn refit_colours(
         for (r, q) in residuals.iter_mut().zip(&shifts) {
             r.iter_mut().zip(q).for_each(|(r, q)| *r -= q);
         }
-        fit.cgls(&mut change, &mut residuals, &rounded, TURN_ITERATIONS);
+        fit.cgls(&mut change, &mut residuals, &rounded, (TURN_ITERATIONS, done));
     }
     let refitted = with_colours(g, (&keep, &decoded), &change, &rounded);
     let mse_after = fit.mse_after;
@@ -169,7 +177,7 @@ impl<'a> LinearFit<'a> {
         change: &mut [[f32; 3]],
         residuals: &mut [Vec<f32>],
         rounded: &[Option<[f32; 3]>],
-        iterations: usize,
+        (iterations, done): (usize, &dyn Fn()),
     ) {
         let (mut s, squares) = self.transpose(residuals);
         if self.diagonal.is_empty() {
@@ -204,6 +212,7 @@ impl<'a> LinearFit<'a> {
                 (0..3).for_each(|c| p[c] = z[c] + beta[c] * p[c]);
             }
             gamma = next;
+            done();
         }
     }
 }

@@ -118,13 +118,26 @@ pub struct Importance {
 
 impl Importance {
     /// The weights from `class_views`, the pruning costs from those and `other_views`.
-    pub fn of_views(
+    pub fn of_views(g: &Gaussians, views: (&[Camera], &[Camera]), options: &RenderOptions) -> Self {
+        Self::of_views_reporting(g, views, options, &|| {})
+    }
+
+    /// [`of_views`](Self::of_views), calling `done` after each view (a progress bar's tick).
+    pub fn of_views_reporting(
         g: &Gaussians,
         (class_views, other_views): (&[Camera], &[Camera]),
         options: &RenderOptions,
+        done: &(dyn Fn() + Sync),
     ) -> Self {
         let all: Vec<&Camera> = class_views.iter().chain(other_views).collect();
-        let per_view: Vec<Vec<f32>> = all.par_iter().map(|camera| view_weights(g, camera, options)).collect();
+        let per_view: Vec<Vec<f32>> = all
+            .par_iter()
+            .map(|camera| {
+                let weights = view_weights(g, camera, options);
+                done();
+                weights
+            })
+            .collect();
         let weights = sum_in_order(&per_view[..class_views.len()], g.len());
         let pixels: Vec<f32> = all.iter().map(|c| c.width as f32 * c.height as f32).collect();
         Self { prune_costs: prune_costs(&per_view, &pixels), weights }

@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use glam::Vec3;
+use indicatif::{ProgressBar, ProgressStyle};
 use pwgs_codec::scene::{Base, Scene};
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::say;
@@ -213,7 +214,9 @@ fn plan_coding(
     let cameras = importance::cameras(context, up, importance::VIEW_SIZE).with_context(placed)?;
     let others =
         if tools.prune_faint { importance::pruning_cameras(context, up).with_context(placed)? } else { Vec::new() };
-    let measured = Importance::of_views(gaussians, (&cameras, &others), options);
+    let bar = phase_bar(cameras.len() + others.len(), "importance views");
+    let measured = Importance::of_views_reporting(gaussians, (&cameras, &others), options, &|| bar.inc(1));
+    bar.finish_and_clear();
     let hidden = measured.weights.iter().filter(|&&w| w == 0.0).count();
     say!(
         "importance: {} views ({} of {size}x{size}, {} of {other}x{other}) in {:.1} s; {hidden} of {} Gaussians \
@@ -256,8 +259,15 @@ fn plan_coding(
     if let Some(refit) = tools.refit_colours {
         let start = Instant::now();
         let model = plan.refitted.as_ref().unwrap_or(gaussians);
-        let (refitted, outcome) =
-            colour_refit::refit_colours((model, gaussians), coding, context, (&cameras, options), refit)?;
+        let bar = phase_bar(refit.steps(), "colour refit iterations");
+        let (refitted, outcome) = colour_refit::refit_colours(
+            (model, gaussians),
+            coding,
+            context,
+            (&cameras, options),
+            (refit, &|| bar.inc(1)),
+        )?;
+        bar.finish_and_clear();
         say!(
             "colour refit: {} Gaussians on {} views in {:.1} s: {:.2} dB -> {} dB (before quantizing the colours)",
             outcome.gaussians,
@@ -271,6 +281,18 @@ fn plan_coding(
     }
     plan.importance = Some(measured);
     Ok(plan)
+}
+
+/// A progress bar over one phase of an import, `len` steps of `what`: drawn on a terminal
+/// only (the log's lines say what each phase did).
+fn phase_bar(len: usize, what: &str) -> ProgressBar {
+    let bar = ProgressBar::new(len as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} {msg} [{elapsed_precise}<{eta_precise}]")
+            .expect("valid template"),
+    );
+    bar.set_message(what.to_string());
+    bar
 }
 
 /// With `--refit-shapes` the prune budget (the step search's, or the quality level's) is this
