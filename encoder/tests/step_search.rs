@@ -32,7 +32,7 @@ fn rotations_of_round_gaussians_go_to_the_coarsest_notch() {
         cameras: &cameras,
         options: &options,
     };
-    let outcome = search(&probe, 6).unwrap();
+    let outcome = search(&probe, &QuantizerSettings::for_quality(6)).unwrap();
     let rotation = KNOBS.iter().position(|&k| k == "rotation").unwrap();
     // Coarser rotations cost no error: the search takes every notch it may.
     assert_eq!(outcome.notches.0[rotation], 4, "{outcome:?}");

@@ -23,7 +23,7 @@ use crate::plain::compress::{Coding, QuantizerSettings, StreamContext};
 use crate::plain::fidelity::{Orbit, orbit_cameras, renders};
 use crate::plain::importance::{self, Importance};
 use crate::plain::shape_refit::{self, ShapeRefitOutcome};
-use crate::plain::step_search::{self, KNOBS, Probe, SearchOutcome};
+use crate::plain::step_search::{self, IMPORT_BALANCE, KNOBS, Probe, SearchOutcome};
 
 /// Compressing a model trained elsewhere.
 #[derive(Debug, Clone)]
@@ -208,6 +208,7 @@ fn plan_coding(
     if !tools.importance {
         return Ok(plan);
     }
+    plan.settings = IMPORT_BALANCE.apply(&plan.settings);
     let start = Instant::now();
     let up = Vec3::from(job.up);
     let placed = || views_problem("importance", context);
@@ -234,7 +235,7 @@ fn plan_coding(
         let start = Instant::now();
         let views: Vec<_> = cameras.iter().step_by(SEARCH_VIEW_STRIDE).cloned().collect();
         let probe = Probe { gaussians, weights, prune_costs, context, cameras: &views, options };
-        let outcome = step_search::search(&probe, job.quality)?;
+        let outcome = step_search::search(&probe, &plan.settings)?;
         print_search(&outcome, views.len(), start.elapsed().as_secs_f64());
         plan.settings = outcome.settings.clone();
         plan.step_search = Some(outcome);
