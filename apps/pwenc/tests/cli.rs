@@ -172,7 +172,17 @@ fn compresses_an_imported_ply() {
     let pruned = report["stream"]["pruned_to_fit"].as_u64().unwrap();
     assert!(pruned > 300 && report["stream"]["gaussians"].as_u64().unwrap() + pruned == 800, "{report}");
     // Importance classes (effort 1, or effort 0 with the option): the stream holds IMPC and
-    // the same Gaussians.
+    // the same Gaussians, with the steps of the import's balance (a rotation step three
+    // notches coarser than the quality level's, which effort 0 keeps).
+    let rotation_step = |stream: &[u8]| {
+        let container = pwgs_bitstream::Container::parse(stream).unwrap();
+        let payload = container.section(pwgs_codec::stream::plain::ROTATIONS).unwrap().payload;
+        f32::from_le_bytes(payload[..4].try_into().unwrap())
+    };
+    let quality = pwgs_encoder::plain::compress::QuantizerSettings::for_quality(7);
+    assert_eq!(rotation_step(&bytes), quality.rotation_step);
+    let balanced = pwgs_encoder::plain::step_search::IMPORT_BALANCE.apply(&quality);
+    assert_eq!(balanced.rotation_step, quality.rotation_step * 2.0 * std::f32::consts::SQRT_2);
     for tools in [&["--effort", "1"][..], &["--effort", "0", "--importance-classes"]] {
         let (input, output) = (path("in.ply"), path("classes.pwb"));
         let args = [&["--from", &input, "-o", &output, "--quality", "7"][..], tools].concat();
@@ -183,6 +193,7 @@ fn compresses_an_imported_ply() {
         let container = pwgs_bitstream::Container::parse(&classes).unwrap();
         assert!(container.section(pwgs_codec::stream::classes::CLASSES).is_some());
         assert_eq!(pwgs_codec::stream::decode(&classes).unwrap().scene.plain_gaussians().unwrap().len(), 800);
+        assert_eq!(rotation_step(&classes), balanced.rotation_step, "{tools:?}");
     }
     // The default effort prunes too, and codes smaller than effort 0.
     let out = pwenc(&["--from", &path("in.ply"), "-o", &path("default.pwb"), "--quality", "7"]);
