@@ -14,10 +14,11 @@
 # $CARGO_TARGET_DIR or target/); ORBIT views (8), SIZE pixels (512), UP (0,-1,0), METRICS for
 # `pwenc compare --metrics` (dists; empty for PSNR and SSIM only), WEIGHTS a weights folder,
 # PWENC_OPTIONS more options for our streams (e.g. "--effort 7"; without it, the default
-# effort).
+# effort), FORMATS the formats to write (default "spz sog compressed.ply": SOG of a model with SH
+# bands takes splat-transform tens of minutes on 2 cores, so "spz compressed.ply" leaves it out).
 # SOG is written on the CPU (`-g cpu`), as no GPU is assumed.
 set -euo pipefail
-[ $# -ge 2 ] || { sed -n '2,16p' "$0" >&2; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,19p' "$0" >&2; exit 2; }
 input=$1
 dir=$2
 shift 2
@@ -44,8 +45,9 @@ fi
 "$transform" --version
 
 # Each format, and its conversion back to PLY (what `pwenc compare` renders).
+read -r -a formats <<<"${FORMATS:-spz sog compressed.ply}"
 declare -A written
-for format in spz sog compressed.ply; do
+for format in "${formats[@]}"; do
     file=$dir/formats/$name.$format
     options=(-q -w)
     [ "$format" = sog ] && options+=(-g cpu)
@@ -62,7 +64,7 @@ done
 # Our readers against splat-transform's: its conversion back to PLY is the reference, our
 # reading of its file the candidate (identical renders give PSNR inf). Its SPZ files store
 # the PLY's axes unmarked, hence --spz-axes rdf (ignored for the other formats).
-for format in spz sog compressed.ply; do
+for format in "${formats[@]}"; do
     label=reader-${format//./-}
     "$pwenc" compare "${written[$format]}.ply" "${written[$format]}" --spz-axes rdf --orbit 4 --orbit-size 256 \
         --up "${UP:-0,-1,0}" -o "$dir/renders/$label" >"$dir/reports/$label.log"
@@ -97,7 +99,7 @@ for set in "${view_sets[@]}"; do
         echo "$label, $1: $(grep -m1 'mean over' "$reports/$1.log")"
     }
     curves=()
-    for format in spz sog compressed.ply; do
+    for format in "${formats[@]}"; do
         compare "${format//./-}" "${written[$format]}.ply" "${written[$format]}"
         curves+=("${format//./-}=$reports/${format//./-}.json")
     done
