@@ -204,7 +204,7 @@ fn plan_coding(
         colour_refit: None,
         shape_refit: None,
     };
-    let tools = job.tools;
+    let mut tools = job.tools;
     if !tools.importance {
         return Ok(plan);
     }
@@ -239,6 +239,17 @@ fn plan_coding(
         print_search(&outcome, views.len(), start.elapsed().as_secs_f64());
         plan.settings = outcome.settings.clone();
         plan.step_search = Some(outcome);
+    }
+    let refits = tools.refit_shapes.is_some() || tools.refit_colours.is_some();
+    if refits && refit_bytes(gaussians.len(), cameras.len()) > REFIT_MEMORY_BUDGET {
+        say!(
+            "refits left out: {} Gaussians on {} views would hold about {:.1} GB of splats (at most {} GB)",
+            gaussians.len(),
+            cameras.len(),
+            refit_bytes(gaussians.len(), cameras.len()) as f64 / f64::from(1u32 << 30),
+            REFIT_MEMORY_BUDGET >> 30,
+        );
+        tools = tools.without_refits();
     }
     if tools.refit_shapes.is_some() {
         plan.settings.prune_budget *= REFIT_BUDGET_FACTOR;
@@ -284,6 +295,18 @@ fn plan_coding(
     Ok(plan)
 }
 
+/// The refits hold every importance view's splats and tile lists at once: biker (130,657
+/// Gaussians kept, 57 views) peaked at 1.1 GB with the colour refit, about 150 bytes per
+/// Gaussian and view. Beyond the budget an import leaves the refits out, with a message,
+/// rather than exhaust memory (a 3M-Gaussian model would hold about 24 GB).
+const REFIT_MEMORY_BUDGET: usize = 4 << 30;
+const REFIT_BYTES_PER_SPLAT: usize = 150;
+
+/// What the refits would hold for `gaussians` on `views` views.
+fn refit_bytes(gaussians: usize, views: usize) -> usize {
+    gaussians.saturating_mul(views).saturating_mul(REFIT_BYTES_PER_SPLAT)
+}
+
 /// A progress bar over one phase of an import, `len` steps of `what`: drawn on a terminal
 /// only (the log's lines say what each phase did).
 fn phase_bar(len: usize, what: &str) -> ProgressBar {
@@ -299,3 +322,16 @@ fn phase_bar(len: usize, what: &str) -> ProgressBar {
 /// With `--refit-shapes` the prune budget (the step search's, or the quality level's) is this
 /// much larger: the refitted Gaussians around a pruned one fill its gap.
 const REFIT_BUDGET_FACTOR: f32 = 2.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refits_fit_for_models_of_biker_size_and_not_for_millions() {
+        assert!(refit_bytes(152_746, 57) <= REFIT_MEMORY_BUDGET);
+        assert!(refit_bytes(400_000, 57) <= REFIT_MEMORY_BUDGET);
+        assert!(refit_bytes(1_000_000, 57) > REFIT_MEMORY_BUDGET);
+        assert_eq!(refit_bytes(usize::MAX, 57), usize::MAX);
+    }
+}
