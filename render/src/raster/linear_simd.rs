@@ -35,9 +35,18 @@ trait Visit<L: Lanes8> {
     fn tile_done(&mut self, _l: L, _rect: [u32; 4]) {}
 }
 
+/// The splats of a view binned in tiles, with the options that decide their blending: what
+/// every walk goes over.
+#[derive(Clone, Copy)]
+struct Walk<'a> {
+    bins: &'a TileBins,
+    splats: &'a [Splat],
+    options: &'a RenderOptions,
+}
+
 /// Walks every tile of `bins` in order, front to back, with `visit`.
 #[inline(always)]
-fn walk<L: Lanes8, V: Visit<L>>(l: L, bins: &TileBins, splats: &[Splat], options: &RenderOptions, visit: &mut V) {
+fn walk<L: Lanes8, V: Visit<L>>(l: L, Walk { bins, splats, options }: Walk, visit: &mut V) {
     for t in 0..(bins.tiles_x * bins.tiles_y) as usize {
         let rect @ [x0, x1, y0, y1] = bins.tile_rect(t);
         visit.tile(l, rect);
@@ -91,6 +100,17 @@ fn walk<L: Lanes8, V: Visit<L>>(l: L, bins: &TileBins, splats: &[Splat], options
     }
 }
 
+/// Each pixel of tile `rect` (`[x0, x1, y0, y1]`) as its offset in the tile's planes and that of
+/// its red value in an RGB image of the window `[x0, y0, width]`.
+fn tile_pixels([x0, x1, y0, y1]: [u32; 4], [wx, wy, width]: [u32; 3]) -> impl Iterator<Item = (usize, usize)> {
+    (y0..y1).flat_map(move |py| {
+        (x0..x1).map(move |px| {
+            let p = (py - y0) as usize * TILE_SIZE as usize + (px - x0) as usize;
+            (p, ((py - wy) as usize * width as usize + (px - wx) as usize) * 3)
+        })
+    })
+}
+
 /// The lanes of `v` added in lane order.
 #[inline(always)]
 fn lane_sum<L: Lanes8>(l: L, v: L::V) -> f32 {
@@ -117,13 +137,11 @@ pub fn splat_weights(
     gaussians: usize,
     portable: bool,
 ) -> Vec<f32> {
-    run_kernel(WeightsKernel { bins, splats, options, gaussians }, portable)
+    run_kernel(WeightsKernel { walk: Walk { bins, splats, options }, gaussians }, portable)
 }
 
 struct WeightsKernel<'a> {
-    bins: &'a TileBins,
-    splats: &'a [Splat],
-    options: &'a RenderOptions,
+    walk: Walk<'a>,
     gaussians: usize,
 }
 
@@ -153,7 +171,7 @@ impl LaneKernel for WeightsKernel<'_> {
     #[inline(always)]
     fn run<L: Lanes4d>(self, l: L) -> Vec<f32> {
         let mut visit = Weights { weights: vec![0.0; self.gaussians], sum: l.splat(0.0) };
-        walk(l, self.bins, self.splats, self.options, &mut visit);
+        walk(l, self.walk, &mut visit);
         visit.weights
     }
 }
@@ -166,13 +184,11 @@ pub fn colour_map_apply(
     values: &[[f32; 3]],
     portable: bool,
 ) -> Vec<f32> {
-    run_kernel(ApplyKernel { bins, splats, options, values }, portable)
+    run_kernel(ApplyKernel { walk: Walk { bins, splats, options }, values }, portable)
 }
 
 struct ApplyKernel<'a> {
-    bins: &'a TileBins,
-    splats: &'a [Splat],
-    options: &'a RenderOptions,
+    walk: Walk<'a>,
     values: &'a [[f32; 3]],
 }
 
@@ -199,14 +215,9 @@ impl<L: Lanes8> Visit<L> for Apply<'_> {
         }
     }
     #[inline(always)]
-    fn tile_done(&mut self, _l: L, [x0, x1, y0, y1]: [u32; 4]) {
-        let [wx, wy, width] = self.window;
-        for py in y0..y1 {
-            for px in x0..x1 {
-                let p = (py - y0) as usize * TILE_SIZE as usize + (px - x0) as usize;
-                let o = ((py - wy) as usize * width as usize + (px - wx) as usize) * 3;
-                (0..3).for_each(|c| self.image[o + c] = self.tile[c][p]);
-            }
+    fn tile_done(&mut self, _l: L, rect: [u32; 4]) {
+        for (p, o) in tile_pixels(rect, self.window) {
+            (0..3).for_each(|c| self.image[o + c] = self.tile[c][p]);
         }
     }
 }
@@ -215,11 +226,11 @@ impl LaneKernel for ApplyKernel<'_> {
     type Output = Vec<f32>;
     #[inline(always)]
     fn run<L: Lanes4d>(self, l: L) -> Vec<f32> {
-        let w = self.bins.window;
+        let w = self.walk.bins.window;
         let image = vec![0.0; w.width as usize * w.height as usize * 3];
         let mut visit =
             Apply { values: self.values, tile: [[0.0; STATE_LEN]; 3], image, window: [w.x0, w.y0, w.width] };
-        walk(l, self.bins, self.splats, self.options, &mut visit);
+        walk(l, self.walk, &mut visit);
         visit.image
     }
 }
@@ -234,13 +245,11 @@ pub fn colour_map_transpose(
     (image, gaussians): (&[f32], usize),
     portable: bool,
 ) -> (Vec<[f32; 3]>, Vec<f32>) {
-    run_kernel(TransposeKernel { bins, splats, options, image, gaussians }, portable)
+    run_kernel(TransposeKernel { walk: Walk { bins, splats, options }, image, gaussians }, portable)
 }
 
 struct TransposeKernel<'a> {
-    bins: &'a TileBins,
-    splats: &'a [Splat],
-    options: &'a RenderOptions,
+    walk: Walk<'a>,
     image: &'a [f32],
     gaussians: usize,
 }
@@ -258,14 +267,9 @@ struct Transpose<'a, V> {
 
 impl<L: Lanes8> Visit<L> for Transpose<'_, L::V> {
     #[inline(always)]
-    fn tile(&mut self, _l: L, [x0, x1, y0, y1]: [u32; 4]) {
-        let [wx, wy, width] = self.window;
-        for py in y0..y1 {
-            for px in x0..x1 {
-                let p = (py - y0) as usize * TILE_SIZE as usize + (px - x0) as usize;
-                let o = ((py - wy) as usize * width as usize + (px - wx) as usize) * 3;
-                (0..3).for_each(|c| self.tile[c][p] = self.image[o + c]);
-            }
+    fn tile(&mut self, _l: L, rect: [u32; 4]) {
+        for (p, o) in tile_pixels(rect, self.window) {
+            (0..3).for_each(|c| self.tile[c][p] = self.image[o + c]);
         }
     }
     #[inline(always)]
@@ -291,7 +295,7 @@ impl LaneKernel for TransposeKernel<'_> {
     type Output = (Vec<[f32; 3]>, Vec<f32>);
     #[inline(always)]
     fn run<L: Lanes4d>(self, l: L) -> Self::Output {
-        let w = self.bins.window;
+        let w = self.walk.bins.window;
         let mut visit = Transpose {
             image: self.image,
             window: [w.x0, w.y0, w.width],
@@ -301,7 +305,7 @@ impl LaneKernel for TransposeKernel<'_> {
             squares: vec![0.0; self.gaussians],
             lanes: [l.splat(0.0); 4],
         };
-        walk(l, self.bins, self.splats, self.options, &mut visit);
+        walk(l, self.walk, &mut visit);
         (visit.sums, visit.squares)
     }
 }
@@ -318,13 +322,11 @@ pub fn colour_map_normal(
     (values, gaussians): (&[[f32; 3]], usize),
     portable: bool,
 ) -> (Vec<f32>, Vec<[f32; 3]>) {
-    run_kernel(NormalKernel { bins, splats, options, values, gaussians }, portable)
+    run_kernel(NormalKernel { walk: Walk { bins, splats, options }, values, gaussians }, portable)
 }
 
 struct NormalKernel<'a> {
-    bins: &'a TileBins,
-    splats: &'a [Splat],
-    options: &'a RenderOptions,
+    walk: Walk<'a>,
     values: &'a [[f32; 3]],
     gaussians: usize,
 }
@@ -374,11 +376,11 @@ impl LaneKernel for NormalKernel<'_> {
     type Output = (Vec<f32>, Vec<[f32; 3]>);
     #[inline(always)]
     fn run<L: Lanes4d>(self, l: L) -> Self::Output {
-        let w = self.bins.window;
+        let w = self.walk.bins.window;
         let image = vec![0.0; w.width as usize * w.height as usize * 3];
         let apply = Apply { values: self.values, tile: [[0.0; STATE_LEN]; 3], image, window: [w.x0, w.y0, w.width] };
         let mut visit = Normal { apply, kept: Vec::new(), normal: vec![[0.0; 3]; self.gaussians] };
-        walk(l, self.bins, self.splats, self.options, &mut visit);
+        walk(l, self.walk, &mut visit);
         (visit.apply.image, visit.normal)
     }
 }
