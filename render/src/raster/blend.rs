@@ -7,7 +7,7 @@
 
 use super::project::Splat;
 use super::tiles::{ListOrder, TileBins};
-use super::{BlendPath, Cutoff, RenderOptions, TILE_SIZE, linear_simd};
+use super::{Cutoff, RenderOptions, TILE_SIZE, linear_simd};
 use pwgs_codec::portable_math::exp_f32;
 
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
@@ -145,10 +145,9 @@ pub fn blend_band(ty: u32, bins: &TileBins, splats: &[Splat], options: &RenderOp
 /// the same decisions as that path's blend. Tiles in order on one thread, so the sums do not
 /// depend on threads.
 pub fn splat_weights(bins: &TileBins, splats: &[Splat], options: &RenderOptions, gaussians: usize) -> Vec<f32> {
-    match options.blend {
-        BlendPath::Scalar => scalar_weights(bins, splats, options, gaussians),
-        BlendPath::Vectorized => linear_simd::splat_weights(bins, splats, options, gaussians, false),
-        BlendPath::Portable => linear_simd::splat_weights(bins, splats, options, gaussians, true),
+    match options.blend.vector_lanes() {
+        None => scalar_weights(bins, splats, options, gaussians),
+        Some(portable) => linear_simd::splat_weights(bins, splats, options, gaussians, portable),
     }
 }
 
@@ -190,10 +189,9 @@ impl ColourMap<'_> {
     /// blend path the options name.
     pub fn apply(&self, values: &[[f32; 3]]) -> Vec<f32> {
         let (bins, splats, options) = (self.bins, self.splats, self.options);
-        match options.blend {
-            BlendPath::Scalar => self.scalar_apply(values),
-            BlendPath::Vectorized => linear_simd::colour_map_apply(bins, splats, options, values, false),
-            BlendPath::Portable => linear_simd::colour_map_apply(bins, splats, options, values, true),
+        match options.blend.vector_lanes() {
+            None => self.scalar_apply(values),
+            Some(portable) => linear_simd::colour_map_apply(bins, splats, options, values, portable),
         }
     }
 
@@ -201,12 +199,9 @@ impl ColourMap<'_> {
     /// `sum w^2` (the diagonal of the map's normal matrix), on the blend path the options name.
     pub fn transpose(&self, image: &[f32], gaussians: usize) -> (Vec<[f32; 3]>, Vec<f32>) {
         let (bins, splats, options) = (self.bins, self.splats, self.options);
-        match options.blend {
-            BlendPath::Scalar => self.scalar_transpose(image, gaussians),
-            BlendPath::Vectorized => {
-                linear_simd::colour_map_transpose(bins, splats, options, (image, gaussians), false)
-            }
-            BlendPath::Portable => linear_simd::colour_map_transpose(bins, splats, options, (image, gaussians), true),
+        match options.blend.vector_lanes() {
+            None => self.scalar_transpose(image, gaussians),
+            Some(portable) => linear_simd::colour_map_transpose(bins, splats, options, (image, gaussians), portable),
         }
     }
 
@@ -215,14 +210,13 @@ impl ColourMap<'_> {
     /// once); on the scalar path as [`apply`](Self::apply) then [`transpose`](Self::transpose).
     pub fn apply_and_normal(&self, values: &[[f32; 3]], gaussians: usize) -> (Vec<f32>, Vec<[f32; 3]>) {
         let (bins, splats, options) = (self.bins, self.splats, self.options);
-        match options.blend {
-            BlendPath::Scalar => {
+        match options.blend.vector_lanes() {
+            None => {
                 let image = self.scalar_apply(values);
                 let normal = self.scalar_transpose(&image, gaussians).0;
                 (image, normal)
             }
-            BlendPath::Vectorized => linear_simd::colour_map_normal(bins, splats, options, (values, gaussians), false),
-            BlendPath::Portable => linear_simd::colour_map_normal(bins, splats, options, (values, gaussians), true),
+            Some(portable) => linear_simd::colour_map_normal(bins, splats, options, (values, gaussians), portable),
         }
     }
 

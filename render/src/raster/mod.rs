@@ -59,6 +59,18 @@ pub enum BlendPath {
     Portable,
 }
 
+impl BlendPath {
+    /// `None` on the scalar path; on a vector path, whether it asks for `wide`'s portable
+    /// lanes (the `portable` argument of the vector kernels).
+    pub fn vector_lanes(self) -> Option<bool> {
+        match self {
+            BlendPath::Scalar => None,
+            BlendPath::Vectorized => Some(false),
+            BlendPath::Portable => Some(true),
+        }
+    }
+}
+
 /// Rendering settings; the defaults are those of 3DGS and gsplat.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RenderOptions {
@@ -212,10 +224,9 @@ pub fn blend_bins(splats: &[Splat], bins: &TileBins, options: &RenderOptions) ->
         .enumerate()
         .for_each(|(ty, (((color, transmittance), depth), last_contributor))| {
             let band = blend::Band { color, transmittance, depth, last_contributor };
-            match options.blend {
-                BlendPath::Scalar => blend::blend_band(ty as u32, bins, splats, options, band),
-                BlendPath::Vectorized => blend_simd::blend_band(ty as u32, bins, splats, options, band, false),
-                BlendPath::Portable => blend_simd::blend_band(ty as u32, bins, splats, options, band, true),
+            match options.blend.vector_lanes() {
+                None => blend::blend_band(ty as u32, bins, splats, options, band),
+                Some(portable) => blend_simd::blend_band(ty as u32, bins, splats, options, band, portable),
             }
         });
     Blended { color: RgbImage { width, height, data: color }, transmittance, depth, last_contributor }

@@ -11,7 +11,7 @@ use pwgs_render::raster::blend::{SMOOTH_CUTOFF_BAND, splat_alpha};
 use pwgs_render::raster::lanes::prefetch;
 use pwgs_render::raster::project::Splat;
 use pwgs_render::raster::tiles::ListOrder;
-use pwgs_render::raster::{BlendPath, Cutoff, RenderOptions, Rendered};
+use pwgs_render::raster::{Cutoff, RenderOptions, Rendered};
 use rayon::prelude::*;
 
 /// Gradient of the loss with respect to one splat's screen-space parameters.
@@ -110,10 +110,9 @@ pub fn blend_backward(rendered: &Rendered, options: &RenderOptions, v_color: &[f
         slices.push(head);
         rest = tail;
     }
-    slices.into_par_iter().enumerate().for_each(|(t, grads)| match options.blend {
-        BlendPath::Scalar => tile_backward(t, rendered, options, v_color, grads),
-        BlendPath::Vectorized => super::blend_simd::tile_backward(t, rendered, options, v_color, grads, false),
-        BlendPath::Portable => super::blend_simd::tile_backward(t, rendered, options, v_color, grads, true),
+    slices.into_par_iter().enumerate().for_each(|(t, grads)| match options.blend.vector_lanes() {
+        None => tile_backward(t, rendered, options, v_color, grads),
+        Some(portable) => super::blend_simd::tile_backward(t, rendered, options, v_color, grads, portable),
     });
     let mut totals = vec![SplatGrad::default(); rendered.splats.len()];
     for (j, (entry, grad)) in bins.entries.iter().zip(&per_entry).enumerate() {
