@@ -49,9 +49,10 @@ pub(crate) struct ImportArgs {
     /// How hard to work for a smaller stream: 0 (fastest) to 9 (smallest).
     ///
     /// Each level is a fixed set of the tools below: 0 uniform steps, 1 importance classes, 2
-    /// with pruning, 3 and 4 with a colour refit, 5 with the step search, 6 to 9 with a shape
-    /// refit and longer refits. The options below add their tool to the level's. With
-    /// --target-bytes the refits are left out.
+    /// with pruning, 3 to 5 with a colour refit (2 and 8 iterations, then 8 rounded in
+    /// quarters), 6 with the step search, 7 to 9 with a shape refit and longer refits. The
+    /// options below add their tool to the level's. With --target-bytes the refits are left
+    /// out.
     #[arg(long, default_value_t = DEFAULT_EFFORT, value_name = "0..9",
           value_parser = clap::value_parser!(u8).range(0..=MAX_EFFORT as i64))]
     pub(crate) effort: u8,
@@ -80,7 +81,8 @@ pub(crate) struct ImportArgs {
     ///
     /// So that the stream renders closest to the model on the importance views (least
     /// squares, the geometry held; 8 conjugate-gradient iterations, then rounded in quarters
-    /// with the rest refitted between), before they are quantized. Not with --target-bytes (the refit is for the Gaussians the quality keeps).
+    /// with the rest refitted between), before they are quantized. Not with --target-bytes
+    /// (the refit is for the Gaussians the quality keeps).
     #[arg(long, conflicts_with = "target_bytes", hide_short_help = true)]
     pub(crate) refit_colours: bool,
     /// Refit the shapes to the quantized positions for EPOCHS (with importance classes).

@@ -30,7 +30,7 @@ use crate::metrics::psnr::mse;
 use crate::plain::compress::{Coding, CompressError, QuantizerSettings, StreamContext, compress_to_size, sqrt2_power};
 use crate::plain::fidelity::renders;
 
-/// The knobs, each moved in notches from the quality level's settings.
+/// The knobs, each moved in notches from the search's base settings.
 pub const KNOBS: [&str; 7] = ["scale", "rotation", "opacity", "colour", "position", "class spread", "prune budget"];
 /// Farthest a knob moves from the quality level's setting, in notches.
 const MAX_NOTCHES: i8 = 4;
