@@ -7,6 +7,12 @@
 #   scripts/profile_kernels.sh [bench options...]
 #   scripts/profile_kernels.sh --cases anchor --scene ../shared/scenes/fern --downscale 4 --gpu-steps 20
 #
+# With --trace first, it times each step instead (the device waited for after each) and counts
+# the kernels CubeCL compiled during it, naming them: whether steps after the first still
+# compile (new shapes, autotuning) shows here, not in the per-kernel profile.
+#
+#   scripts/profile_kernels.sh --trace --cases anchor --scene ../shared/scenes/fern --downscale 4 --gpu-steps 20
+#
 # BENCH names the bench binary (default: the newest `training_device` test-profile build in
 # $CARGO_TARGET_DIR or target/; build it with
 # `cargo test -p pwgs-encoder --features gpu --bench training_device --no-run`). LOG keeps
@@ -16,6 +22,22 @@ target=${CARGO_TARGET_DIR:-target}/debug/deps
 bench=${BENCH:-$(ls -t "$target"/training_device-* 2>/dev/null | grep -v '\.d$' | head -1)}
 [ -x "$bench" ] || { echo "no training_device bench binary (set BENCH, or build it: see the header)" >&2; exit 2; }
 log=${LOG:-$(mktemp)}
+if [ "${1:-}" = --trace ]; then
+    shift
+    PWGS_TRACE_STEPS=1 CUBECL_DEBUG_LOG=stderr "$bench" --gpu-only "$@" 2>"$log"
+    # The log reads "[START_KERNEL_COMPILATION]" then "name: Kernel..." per compilation, and the
+    # bench's "[STEP] k ms" after each step.
+    awk '
+        /^\[START_KERNEL_COMPILATION\]/ { compiled++; want = 1; next }
+        want && /^name: / { n = $2; sub(/<.*/, "", n); sub(/.*::/, "", n); names[n]++; want = 0; next }
+        /^\[STEP\]/ {
+            list = ""
+            for (k in names) list = list " " k "x" names[k]
+            printf "step %4d %10.1f ms %5d compiled%s\n", $2, $3, compiled, list
+            compiled = 0; delete names
+        }' "$log"
+    exit 0
+fi
 CUBECL_DEBUG_OPTION=profile CUBECL_DEBUG_LOG=$log "$bench" --gpu-only "$@"
 # CubeCL's profile lines read "| 1.68ms | KernelName_hash | ...".
 grep -E '^\| [0-9.]+(ns|µs|ms|s) +\|' "$log" | awk -F'|' -v top="${TOP:-25}" '

@@ -45,15 +45,28 @@ struct StageTwo {
     gpu_steps: usize,
 }
 
-/// First step's seconds and steps per second after it.
+/// First step's seconds and steps per second after it. With `PWGS_TRACE_STEPS` set, each step
+/// waits for the device and prints `[STEP] k ms` to stderr: with `CUBECL_DEBUG_LOG=stderr`
+/// the kernels CubeCL compiles land between the steps that needed them
+/// (`scripts/profile_kernels.sh --trace`).
 fn time_steps(steps: usize, mut step: impl FnMut() -> Result<()>, device: &TrainingDevice) -> Result<(f64, f64)> {
-    let start = Instant::now();
-    step()?;
-    device.sync()?;
-    let first = start.elapsed().as_secs_f64();
-    let start = Instant::now();
-    for _ in 0..steps {
+    let trace = std::env::var_os("PWGS_TRACE_STEPS").is_some();
+    let mut timed = |k: usize| -> Result<f64> {
+        let start = Instant::now();
         step()?;
+        if trace || k == 1 {
+            device.sync()?;
+        }
+        let seconds = start.elapsed().as_secs_f64();
+        if trace {
+            eprintln!("[STEP] {k} {:.1} ms", seconds * 1e3);
+        }
+        Ok(seconds)
+    };
+    let first = timed(1)?;
+    let start = Instant::now();
+    for k in 2..steps + 2 {
+        timed(k)?;
     }
     device.sync()?;
     Ok((first, steps as f64 / start.elapsed().as_secs_f64()))
