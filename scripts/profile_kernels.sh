@@ -7,9 +7,11 @@
 #   scripts/profile_kernels.sh [bench options...]
 #   scripts/profile_kernels.sh --cases anchor --scene ../shared/scenes/fern --downscale 4 --gpu-steps 20
 #
-# With --trace first, it times each step instead (the device waited for after each) and counts
-# the kernels CubeCL compiled during it, naming them: whether steps after the first still
-# compile (new shapes, autotuning) shows here, not in the per-kernel profile.
+# With --trace first, it times each step instead and counts the kernels CubeCL compiled during
+# it, naming them: whether steps after the first still compile (new shapes, autotuning) shows
+# here, not in the per-kernel profile. The same count for a whole `pwenc` run (its rate term
+# and growth included, which the bench leaves out): `PWGS_TRACE_STEPS=1 CUBECL_DEBUG_LOG=stderr
+# pwenc SCENE --device gpu ... 2>LOG`, then `scripts/profile_kernels.sh --count LOG`.
 #
 #   scripts/profile_kernels.sh --trace --cases anchor --scene ../shared/scenes/fern --downscale 4 --gpu-steps 20
 #
@@ -18,15 +20,9 @@
 # `cargo test -p pwgs-encoder --features gpu --bench training_device --no-run`). LOG keeps
 # CubeCL's log (default: a temporary file); TOP kernels are listed (default 25).
 set -euo pipefail
-target=${CARGO_TARGET_DIR:-target}/debug/deps
-bench=${BENCH:-$(ls -t "$target"/training_device-* 2>/dev/null | grep -v '\.d$' | head -1)}
-[ -x "$bench" ] || { echo "no training_device bench binary (set BENCH, or build it: see the header)" >&2; exit 2; }
-log=${LOG:-$(mktemp)}
-if [ "${1:-}" = --trace ]; then
-    shift
-    PWGS_TRACE_STEPS=1 CUBECL_DEBUG_LOG=stderr "$bench" --gpu-only "$@" 2>"$log"
-    # The log reads "[START_KERNEL_COMPILATION]" then "name: Kernel..." per compilation, and the
-    # bench's "[STEP] k ms" after each step.
+# Steps and the kernels compiled during each, from a log of CubeCL's compilations
+# ("[START_KERNEL_COMPILATION]", then "name: Kernel...") and the steps' "[STEP] k ms" lines.
+count_per_step() {
     awk '
         /^\[START_KERNEL_COMPILATION\]/ { compiled++; want = 1; next }
         want && /^name: / { n = $2; sub(/<.*/, "", n); sub(/.*::/, "", n); names[n]++; want = 0; next }
@@ -35,7 +31,20 @@ if [ "${1:-}" = --trace ]; then
             for (k in names) list = list " " k "x" names[k]
             printf "step %4d %10.1f ms %5d compiled%s\n", $2, $3, compiled, list
             compiled = 0; delete names
-        }' "$log"
+        }' "$1"
+}
+if [ "${1:-}" = --count ]; then
+    count_per_step "$2"
+    exit 0
+fi
+target=${CARGO_TARGET_DIR:-target}/debug/deps
+bench=${BENCH:-$(ls -t "$target"/training_device-* 2>/dev/null | grep -v '\.d$' | head -1)}
+[ -x "$bench" ] || { echo "no training_device bench binary (set BENCH, or build it: see the header)" >&2; exit 2; }
+log=${LOG:-$(mktemp)}
+if [ "${1:-}" = --trace ]; then
+    shift
+    PWGS_TRACE_STEPS=1 CUBECL_DEBUG_LOG=stderr "$bench" --gpu-only "$@" 2>"$log"
+    count_per_step "$log"
     exit 0
 fi
 CUBECL_DEBUG_OPTION=profile CUBECL_DEBUG_LOG=$log "$bench" --gpu-only "$@"

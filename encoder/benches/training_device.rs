@@ -34,7 +34,7 @@ use pwgs_encoder::anchor::init::{AnchorShape, initial_model};
 use pwgs_encoder::anchor::train::AnchorTrainer;
 use pwgs_encoder::plain::init::initial_gaussians;
 use pwgs_encoder::plain::train::{TrainConfig, Trainer};
-use pwgs_encoder::train::device::TrainingDevice;
+use pwgs_encoder::train::device::{StepTrace, TrainingDevice};
 use pwgs_encoder::wrapper::throughput::stage_two_throughput;
 
 /// A stage-2 measurement: view size, crop side, steps timed on the CPU and on a GPU.
@@ -46,27 +46,18 @@ struct StageTwo {
 }
 
 /// First step's seconds and steps per second after it. With `PWGS_TRACE_STEPS` set, each step
-/// waits for the device and prints `[STEP] k ms` to stderr: with `CUBECL_DEBUG_LOG=stderr`
-/// the kernels CubeCL compiles land between the steps that needed them
-/// (`scripts/profile_kernels.sh --trace`).
+/// is also waited for and timed ([`StepTrace`]).
 fn time_steps(steps: usize, mut step: impl FnMut() -> Result<()>, device: &TrainingDevice) -> Result<(f64, f64)> {
-    let trace = std::env::var_os("PWGS_TRACE_STEPS").is_some();
-    let mut timed = |k: usize| -> Result<f64> {
-        let start = Instant::now();
-        step()?;
-        if trace || k == 1 {
-            device.sync()?;
-        }
-        let seconds = start.elapsed().as_secs_f64();
-        if trace {
-            eprintln!("[STEP] {k} {:.1} ms", seconds * 1e3);
-        }
-        Ok(seconds)
-    };
-    let first = timed(1)?;
+    let mut trace = StepTrace::from_env();
     let start = Instant::now();
-    for k in 2..steps + 2 {
-        timed(k)?;
+    step()?;
+    device.sync()?;
+    trace.step(1);
+    let first = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    for k in 2..steps as u32 + 2 {
+        step()?;
+        trace.step(k);
     }
     device.sync()?;
     Ok((first, steps as f64 / start.elapsed().as_secs_f64()))

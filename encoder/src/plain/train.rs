@@ -23,6 +23,7 @@ use super::densify::{DensifyConfig, DensifyReport, DeviceGradStats, HostState, d
 use crate::metrics::ssim::{SsimConvention, ssim};
 use crate::metrics::vgg_wasserstein::VggWasserstein;
 use crate::train::adam::{LearningRates, Moments};
+use crate::train::device::StepTrace;
 use crate::train::params::{SplatParams, tensor_values};
 use crate::train::splat_op::{SplatView, render};
 use crate::train::views::{DEFAULT_IMAGE_BUDGET, TrainViews};
@@ -406,8 +407,10 @@ pub struct TrainSummary {
 pub fn train(trainer: &mut Trainer, mut progress: impl FnMut(u32, &StepReport)) -> Result<TrainSummary> {
     let start = Instant::now();
     let mut last = None;
+    let mut trace = StepTrace::from_env();
     while trainer.iteration < trainer.config.iterations {
         let report = trainer.step()?;
+        trace.step(trainer.iteration);
         progress(trainer.iteration, &report);
         last = Some(report);
     }

@@ -32,7 +32,7 @@ use crate::anchor::network_steps::{StepCandidate, StepObjective, choose_context_
 use crate::anchor::quantize::{AnchorSteps, grid_coordinates, quantize as quantize_anchors, quantize_context};
 use crate::anchor::train::{AnchorTrainer, GrowthTotals, StageTwoLambda};
 use crate::anchor::trim::fit_anchors;
-use crate::train::device::TrainingDevice;
+use crate::train::device::{StepTrace, TrainingDevice};
 use crate::wrapper::stage::WrapperTraining;
 
 /// Training the anchor base.
@@ -288,8 +288,10 @@ fn train(job: &AnchorTraining, trainer: &mut AnchorTrainer) -> Result<Trained> {
     let start = Instant::now();
     let mut last_step_gaussians = 0;
     let mut last_bits = None;
+    let mut trace = StepTrace::from_env();
     while trainer.iteration < trainer.iterations {
         let step = trainer.step()?;
+        trace.step(trainer.iteration);
         last_step_gaussians = step.gaussians;
         last_bits = step.bits_per_value;
         let it = trainer.iteration;

@@ -97,6 +97,30 @@ impl TrainingDevice {
     }
 }
 
+/// Per-step timing for finding where a device's steps go (`PWGS_TRACE_STEPS` set): each step's
+/// wall time as `[STEP] k ms` on stderr, where, with `CUBECL_DEBUG_LOG=stderr`, CubeCL's lines
+/// for the kernels it compiled during that step come before it
+/// (`scripts/profile_kernels.sh --trace` counts them). A step that reads a value back from the
+/// device (every training step does: its loss) has finished its device work when it returns.
+pub struct StepTrace {
+    last: Option<std::time::Instant>,
+}
+
+impl StepTrace {
+    /// Tracing when `PWGS_TRACE_STEPS` is set, from now.
+    pub fn from_env() -> Self {
+        Self { last: std::env::var_os("PWGS_TRACE_STEPS").map(|_| std::time::Instant::now()) }
+    }
+
+    /// Step `k` has returned.
+    pub fn step(&mut self, k: u32) {
+        if let Some(last) = self.last.as_mut() {
+            eprintln!("[STEP] {k} {:.1} ms", last.elapsed().as_secs_f64() * 1e3);
+            *last = std::time::Instant::now();
+        }
+    }
+}
+
 /// CubeCL's autotuning at its `minimal` level unless `CUBECL_AUTOTUNE_LEVEL` says otherwise:
 /// at the default level, on an NVIDIA H200, tuning a whole-image step panicked (a candidate's
 /// grid over wgpu's 65,535 limit) and then hung, and on lavapipe a first step did not finish in
