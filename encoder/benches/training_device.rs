@@ -46,7 +46,8 @@ struct StageTwo {
 }
 
 /// First step's seconds and steps per second after it. With `PWGS_TRACE_STEPS` set, each step
-/// is also waited for and timed ([`StepTrace`]).
+/// is also timed ([`StepTrace`]; a step reads its loss back, so it returns when the device is
+/// done with it).
 fn time_steps(steps: usize, mut step: impl FnMut() -> Result<()>, device: &TrainingDevice) -> Result<(f64, f64)> {
     let mut trace = StepTrace::from_env();
     let start = Instant::now();

@@ -241,12 +241,13 @@ fn plan_coding(
         plan.step_search = Some(outcome);
     }
     let refits = tools.refit_shapes.is_some() || tools.refit_colours.is_some();
-    if refits && refit_bytes(gaussians.len(), cameras.len()) > REFIT_MEMORY_BUDGET {
+    let held = refit_bytes(gaussians.len(), cameras.len());
+    if refits && held > REFIT_MEMORY_BUDGET {
         say!(
             "refits left out: {} Gaussians on {} views would hold about {:.1} GB of splats (at most {} GB)",
             gaussians.len(),
             cameras.len(),
-            refit_bytes(gaussians.len(), cameras.len()) as f64 / f64::from(1u32 << 30),
+            held as f64 / f64::from(1u32 << 30),
             REFIT_MEMORY_BUDGET >> 30,
         );
         tools = tools.without_refits();
