@@ -11,7 +11,9 @@
 # it, naming them: whether steps after the first still compile (new shapes, autotuning) shows
 # here, not in the per-kernel profile. The same count for a whole `pwenc` run (its rate term
 # and growth included, which the bench leaves out): `PWGS_TRACE_STEPS=1 CUBECL_DEBUG_LOG=stderr
-# pwenc SCENE --device gpu ... 2>LOG`, then `scripts/profile_kernels.sh --count LOG`.
+# pwenc SCENE --device gpu ... 2>LOG`, then `scripts/profile_kernels.sh --count LOG`. With
+# `BURN_FUSION_LOG=full` in the run's environment too, it also counts the segments Burn's fusion
+# explored anew in each step (host work; none in a steady state whose operations repeat).
 #
 #   scripts/profile_kernels.sh --trace --cases anchor --scene ../shared/scenes/fern --downscale 4 --gpu-steps 20
 #
@@ -21,16 +23,18 @@
 # CubeCL's log (default: a temporary file); TOP kernels are listed (default 25).
 set -euo pipefail
 # Steps and the kernels compiled during each, from a log of CubeCL's compilations
-# ("[START_KERNEL_COMPILATION]", then "name: Kernel...") and the steps' "[STEP] k ms" lines.
+# ("[START_KERNEL_COMPILATION]", then "name: Kernel...") and the steps' "[STEP] k ms" lines,
+# and fusion's explorations ("[plan] exploration completed") where the log has them.
 count_per_step() {
     awk '
+        /^\[plan\] exploration completed/ { explored++; next }
         /^\[START_KERNEL_COMPILATION\]/ { compiled++; want = 1; next }
         want && /^name: / { n = $2; sub(/<.*/, "", n); sub(/.*::/, "", n); names[n]++; want = 0; next }
         /^\[STEP\]/ {
             list = ""
             for (k in names) list = list " " k "x" names[k]
-            printf "step %4d %10.1f ms %5d compiled%s\n", $2, $3, compiled, list
-            compiled = 0; delete names
+            printf "step %4d %10.1f ms %4d explored %5d compiled%s\n", $2, $3, explored, compiled, list
+            compiled = 0; explored = 0; delete names
         }' "$1"
 }
 if [ "${1:-}" = --count ]; then

@@ -270,26 +270,28 @@ impl Trainer {
         let (x0, y0) = (w.x0 as usize, w.y0 as usize);
         let target = target.slice([y0..y0 + w.height as usize, x0..x0 + w.width as usize, 0..3]);
         let mse = (shown.inner() - target).powi_scalar(2).mean();
-        let grads = loss.backward();
+        // Taken out one by one in a fixed order: gradients left in `grads` drop in hash order,
+        // a different operation stream each step for Burn's fusion to explore again.
+        let mut grads = loss.backward();
         let loss_value = tensor_values(loss.inner())[0];
         let psnr = -10.0 * tensor_values(mse)[0].log10();
 
         let grad = |g: Option<Tensor<2>>, like: &Tensor<2>| g.unwrap_or_else(|| like.zeros_like());
         let g = SplatParams {
-            means: grad(means.grad(&grads), &p.means),
-            log_scales: grad(log_scales.grad(&grads), &p.log_scales),
-            rotations: grad(rotations.grad(&grads), &p.rotations),
-            opacity_logits: opacity.grad(&grads).unwrap_or_else(|| p.opacity_logits.zeros_like()),
-            sh: sh.grad(&grads).unwrap_or_else(|| p.sh.zeros_like()),
+            means: grad(means.grad_remove(&mut grads), &p.means),
+            log_scales: grad(log_scales.grad_remove(&mut grads), &p.log_scales),
+            rotations: grad(rotations.grad_remove(&mut grads), &p.rotations),
+            opacity_logits: opacity.grad_remove(&mut grads).unwrap_or_else(|| p.opacity_logits.zeros_like()),
+            sh: sh.grad_remove(&mut grads).unwrap_or_else(|| p.sh.zeros_like()),
         };
         // 3DGS thresholds the gradient with respect to normalized device coordinates, which
         // span the image with 2 units: d/d(ndc) = d/d(pixel) * size / 2.
         let ndc = 0.5 * camera.width.max(camera.height) as f32;
-        let screen = probe.grad(&grads).map(|t| t * ndc);
+        let screen = probe.grad_remove(&mut grads).map(|t| t * ndc);
 
         let lr = self.config.learning_rates(it, self.extent);
         let updated = self.moments.step(self.params.clone(), g, &lr, it + 1);
-        let wrapper_grad = wrapper_params.map(|p| p.grad(&grads).unwrap_or_else(|| p.inner().zeros_like()));
+        let wrapper_grad = wrapper_params.map(|p| p.grad_remove(&mut grads).unwrap_or_else(|| p.inner().zeros_like()));
         let mut bad = non_finite_parameter(&updated, loss_value);
         if bad.is_none()
             && let (Some(stage), Some(grad)) = (&mut self.wrapper, wrapper_grad)

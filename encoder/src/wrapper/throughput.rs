@@ -71,8 +71,8 @@ pub fn stage_two_throughput(
         // The render's place in the graph: a tracked tensor, as the splat operation's output is.
         let image = base.clone().slice([y..y + ch, x..x + cw, 0..3]).autodiff().require_grad();
         let (loss, _, params) = stage.loss(0, crop, image, &target);
-        let grads = loss.backward();
-        let grad = params.grad(&grads).unwrap_or_else(|| params.inner().zeros_like());
+        let mut grads = loss.backward();
+        let grad = params.grad_remove(&mut grads).unwrap_or_else(|| params.inner().zeros_like());
         if stage.update(grad).is_none() {
             bail!("the synthesis network became non-finite");
         }

@@ -500,7 +500,10 @@ impl AnchorTrainer {
             bits = Some(bpp.clone().inner());
             loss = loss + bpp * (lambda * self.lambda_factor());
         }
-        let grads = loss.backward();
+        // Gradients are taken out of `grads` one by one in a fixed order: what is left in it
+        // drops in hash order, a different operation stream each step, which Burn's fusion
+        // would explore again every step.
+        let mut grads = loss.backward();
         // The step's one read-back: its scalars.
         let zero = || Tensor::<1>::zeros([1], &device);
         let scalars =
@@ -516,19 +519,19 @@ impl AnchorTrainer {
         if let Some(scale) = &mut self.distortion_scale {
             scale.record(self.wrapper.is_some(), distortion_value);
         }
-        if gathering && let (Some(growth), Some(screen)) = (&mut self.growth, probe.grad(&grads)) {
+        if gathering && let (Some(growth), Some(screen)) = (&mut self.growth, probe.grad_remove(&mut grads)) {
             // As 3DGS, in normalized device coordinates: d/d(ndc) = d/d(pixel) * size / 2.
             let ndc = 0.5 * camera.width.max(camera.height) as f32;
             growth.stats.add(screen.abs() * ndc, opacity);
         }
-        let wrapper_grad = wrapper_params.map(|p| p.grad(&grads).unwrap_or_else(|| p.inner().zeros_like()));
+        let wrapper_grad = wrapper_params.map(|p| p.grad_remove(&mut grads).unwrap_or_else(|| p.inner().zeros_like()));
         if let (Some(stage), Some(grad)) = (&mut self.wrapper, wrapper_grad)
             && stage.update(grad).is_none()
         {
             bail!("anchor training diverged at iteration {}: the synthesis network became non-finite", self.iteration);
         }
         for (i, t) in tracked.iter().enumerate() {
-            let grad = t.grad(&grads).unwrap_or_else(|| self.params[i].zeros_like());
+            let grad = t.grad_remove(&mut grads).unwrap_or_else(|| self.params[i].zeros_like());
             let rate = self.rate(i);
             let (first, second) = &mut self.moments[i];
             self.params[i] = self.params[i].clone() - direction(grad, first, second, self.iteration + 1) * rate;
