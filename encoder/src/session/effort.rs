@@ -37,9 +37,9 @@ impl Tools {
     /// epochs, 8 with 16 colour iterations, 9 with 24 shape epochs. Each level's time and bytes
     /// are in docs/results/splat-formats.md ("Effort levels"). No level searches the steps: the
     /// search scores its views before the refits and coarsens what they would have made up
-    /// for (level 9 with it coded guitar 4.6% larger at equal PSNR than level 5 without it). The colour
-    /// refit needs all 57 importance views at 512x512: on every other one it fits those views
-    /// and codes biker larger at a lower PSNR than without a refit.
+    /// for (level 9 with it coded guitar 4.6% larger at equal PSNR than level 5 without it).
+    /// The colour refit needs all 57 importance views at 512x512: on every other one it fits
+    /// those views and codes biker larger at a lower PSNR than without a refit.
     pub fn of_effort(effort: u8) -> Self {
         let effort = effort.min(MAX_EFFORT);
         let at = |level: u8| effort >= level;
