@@ -15,10 +15,11 @@
 # `pwenc compare --metrics` (dists; empty for PSNR and SSIM only), WEIGHTS a weights folder,
 # PWENC_OPTIONS more options for our streams (e.g. "--effort 7"; without it, the default
 # effort), FORMATS the formats to write (default "spz sog compressed.ply": SOG of a model with SH
-# bands takes splat-transform tens of minutes on 2 cores, so "spz compressed.ply" leaves it out).
+# bands takes splat-transform hours on 2 cores, so "spz compressed.ply" leaves it out),
+# SOG_ITERATIONS the SOG writer's k-means iterations on the SH bands (`-i`; default its own, 10).
 # SOG is written on the CPU (`-g cpu`), as no GPU is assumed.
 set -euo pipefail
-[ $# -ge 2 ] || { sed -n '2,19p' "$0" >&2; exit 2; }
+[ $# -ge 2 ] || { sed -n '2,20p' "$0" >&2; exit 2; }
 input=$1
 dir=$2
 shift 2
@@ -50,7 +51,7 @@ declare -A written
 for format in "${formats[@]}"; do
     file=$dir/formats/$name.$format
     options=(-q -w)
-    [ "$format" = sog ] && options+=(-g cpu)
+    [ "$format" = sog ] && options+=(-g cpu ${SOG_ITERATIONS:+-i "$SOG_ITERATIONS"})
     start=$(date +%s.%N)
     "$transform" "${options[@]}" "$input" "$file"
     middle=$(date +%s.%N)
