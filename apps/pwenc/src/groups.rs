@@ -79,8 +79,8 @@ pub(crate) struct ImportArgs {
     pub(crate) search_steps: bool,
     /// Refit the colours to the quantized geometry (with importance classes).
     ///
-    /// So that the stream renders closest to the model on the importance views (least
-    /// squares, the geometry held; 8 conjugate-gradient iterations, then rounded in quarters
+    /// So that the stream renders closest to the model on the importance views and 41 more
+    /// below their horizon (least squares, the geometry held; 8 conjugate-gradient iterations, then rounded in quarters
     /// with the rest refitted between), before they are quantized. Not with --target-bytes
     /// (the refit is for the Gaussians the quality keeps).
     #[arg(long, conflicts_with = "target_bytes", hide_short_help = true)]
@@ -89,8 +89,8 @@ pub(crate) struct ImportArgs {
     ///
     /// Refits the scales, rotations, opacities and SH to the quantized positions (and to the
     /// Gaussians pruned) so that the stream renders closest to the model on the importance
-    /// views: this many epochs of gradient descent over those views, before they are quantized
-    /// (and before --refit-colours). Not with --target-bytes.
+    /// views and 41 more below their horizon: this many epochs of gradient descent over those
+    /// views, before they are quantized (and before --refit-colours). Not with --target-bytes.
     #[arg(long, conflicts_with = "target_bytes", value_name = "EPOCHS", hide_short_help = true,
           value_parser = clap::value_parser!(u16).range(1..=100))]
     pub(crate) refit_shapes: Option<u16>,

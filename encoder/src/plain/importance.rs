@@ -73,10 +73,33 @@ pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camer
 /// directions of a 3 x 3 x 3 grid at half the distance, closer in, where the model's middle
 /// fills twice the width.
 pub fn pruning_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
-    let size = OTHER_VIEW_SIZE;
-    let mut out = ring_cameras(context, up, size, (&directions(5), 1.0), |d| d.dot(up) < -1e-6)?;
-    out.extend(ring_cameras(context, up, size, (&directions(3), 0.5), |_| true)?);
+    let mut out = below_cameras(context, up)?;
+    out.extend(ring_cameras(context, up, OTHER_VIEW_SIZE, (&directions(3), 0.5), |_| true)?);
     Ok(out)
+}
+
+/// The views the refits ([`crate::plain::colour_refit`], [`crate::plain::shape_refit`]) fit
+/// the decoded model to: [`cameras`] and the rest of the sphere ([`below_cameras`]). A refit
+/// moves each Gaussian's values towards what its views show; fitted on the upper views alone, a
+/// Gaussian seen mostly from below the horizon was free to go wherever that helped them.
+/// Measured at level 4 (the colour refit, 8 iterations; `pwenc compare`, 8 views of 512x512),
+/// upper views alone against these: from 35 degrees below the horizon, guitar q9 39.73 dB
+/// against 45.02 dB (43.55 dB at level 2, no refit), biker q11 26.39 dB against 43.69 dB (40.93
+/// dB at level 2); on the orbit above it, at fewer bytes (the colours no view held had cost
+/// bytes too), guitar 476,627 bytes at 55.66 dB against 455,166 at 55.58, biker 1,096,408 at
+/// 56.17 against 1,070,483 at 55.95; guitar's views at half the distance alike (45.60 and 45.58
+/// dB). Adding the closer views of [`pruning_cameras`] as well changed guitar by less than 0.1 dB
+/// on each set.
+pub fn refit_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
+    let mut out = cameras(context, up, VIEW_SIZE)?;
+    out.extend(below_cameras(context, up)?);
+    Ok(out)
+}
+
+/// The 41 of the 98 [`directions`] below the horizon of `up`, at the distance of [`cameras`],
+/// of [`OTHER_VIEW_SIZE`] pixels.
+fn below_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
+    ring_cameras(context, up, OTHER_VIEW_SIZE, (&directions(5), 1.0), |d| d.dot(up) < -1e-6)
 }
 
 /// Cameras looking at the scene's center from `distance` times its scale along each of
@@ -249,6 +272,19 @@ mod tests {
             let ahead = c.world_to_camera(Vec3::new(1.0, 2.0, 3.0));
             assert!(ahead.x.abs() < 1e-4 && ahead.y.abs() < 1e-4 && ahead.z > 3.99, "{ahead}");
         }
+    }
+
+    #[test]
+    fn refits_fit_views_below_the_horizon_too() {
+        let context = StreamContext { center: [1.0, 2.0, 3.0], scale: 2.0, background: [0.0; 3] };
+        let up = Vec3::Z;
+        let views = refit_cameras(&context, up).unwrap();
+        let height = |c: &Camera| (c.center() - Vec3::from(context.center)).dot(up);
+        assert_eq!(views.len(), 57 + 41);
+        assert_eq!(views.iter().filter(|c| height(c) < -1e-3).count(), 41);
+        assert!(views.iter().take(57).all(|c| c.width == VIEW_SIZE && height(c) > -1e-3));
+        let distances = views.iter().map(|c| (c.center() - Vec3::from(context.center)).length());
+        assert!(distances.into_iter().all(|d| (d - 2.0).abs() < 1e-5));
     }
 
     #[test]
