@@ -80,9 +80,9 @@ pub(crate) struct ImportArgs {
     /// Refit the colours to the quantized geometry (with importance classes).
     ///
     /// So that the stream renders closest to the model on the importance views and 41 more
-    /// below their horizon (least squares, the geometry held; 8 conjugate-gradient iterations, then rounded in quarters
-    /// with the rest refitted between), before they are quantized. Not with --target-bytes
-    /// (the refit is for the Gaussians the quality keeps).
+    /// below their horizon (least squares, the geometry held; 8 conjugate-gradient iterations,
+    /// then rounded in quarters with the rest refitted between), before they are quantized.
+    /// Not with --target-bytes (the refit is for the Gaussians the quality keeps).
     #[arg(long, conflicts_with = "target_bytes", hide_short_help = true)]
     pub(crate) refit_colours: bool,
     /// Refit the shapes to the quantized positions for EPOCHS (with importance classes).
