@@ -47,7 +47,9 @@ fi
 
 # Each format, and its conversion back to PLY (what `pwenc compare` renders).
 read -r -a formats <<<"${FORMATS:-spz sog compressed.ply}"
-declare -A written
+# Each file's encode and decode time (splat-transform's writing and its reading back to PLY for
+# the formats), which the reports carry.
+declare -A written encode_seconds decode_seconds
 for format in "${formats[@]}"; do
     file=$dir/formats/$name.$format
     options=(-q -w)
@@ -57,7 +59,9 @@ for format in "${formats[@]}"; do
     middle=$(date +%s.%N)
     "$transform" -q -w "$file" "$file.ply"
     end=$(date +%s.%N)
-    echo "$format: $(stat -c %s "$file") bytes, splat-transform writes it in $(echo "$middle - $start" | bc) s, reads it back to PLY in $(echo "$end - $middle" | bc) s" |
+    encode_seconds[$format]=$(echo "$middle - $start" | bc)
+    decode_seconds[$format]=$(echo "$end - $middle" | bc)
+    echo "$format: $(stat -c %s "$file") bytes, splat-transform writes it in ${encode_seconds[$format]} s, reads it back to PLY in ${decode_seconds[$format]} s" |
         tee -a "$dir/formats/times.txt"
     written[$format]=$file
 done
@@ -80,7 +84,9 @@ for q in "${qualities[@]}"; do
     middle=$(date +%s.%N)
     "$pwdec" "$dir/ours/q$q.pwb" --hash >/dev/null
     end=$(date +%s.%N)
-    echo "q$q: $(stat -c %s "$dir/ours/q$q.pwb") bytes, encode $(echo "$middle - $start" | bc) s, decode $(echo "$end - $middle" | bc) s" |
+    encode_seconds[q$q]=$(echo "$middle - $start" | bc)
+    decode_seconds[q$q]=$(echo "$end - $middle" | bc)
+    echo "q$q: $(stat -c %s "$dir/ours/q$q.pwb") bytes, encode ${encode_seconds[q$q]} s, decode ${decode_seconds[q$q]} s" |
         tee -a "$dir/ours/times.txt"
 done
 
@@ -92,21 +98,21 @@ for set in "${view_sets[@]}"; do
     read -r -a set_options <<<"${set#*:}"
     reports=$dir/reports/$label
     mkdir -p "$reports"
-    compare() { # NAME CANDIDATE [SIZE_OF]
-        local size_of=()
-        [ $# -ge 3 ] && size_of=(--size-of "$3")
+    compare() { # NAME CANDIDATE TIMES_KEY [SIZE_OF]
+        local more=(--encode-seconds "${encode_seconds[$3]}" --decode-seconds "${decode_seconds[$3]}")
+        [ $# -ge 4 ] && more+=(--size-of "$4")
         "$pwenc" compare "$input" "$2" -o "$dir/renders/$label/$1" --report "$reports/$1.json" \
-            "${compare_options[@]}" "${set_options[@]}" "${size_of[@]}" >"$reports/$1.log"
+            "${compare_options[@]}" "${set_options[@]}" "${more[@]}" >"$reports/$1.log"
         echo "$label, $1: $(grep -m1 'mean over' "$reports/$1.log")"
     }
     curves=()
     for format in "${formats[@]}"; do
-        compare "${format//./-}" "${written[$format]}.ply" "${written[$format]}"
+        compare "${format//./-}" "${written[$format]}.ply" "$format" "${written[$format]}"
         curves+=("${format//./-}=$reports/${format//./-}.json")
     done
     ours=()
     for q in "${qualities[@]}"; do
-        compare "pwgs-q$q" "$dir/ours/q$q.pwb"
+        compare "pwgs-q$q" "$dir/ours/q$q.pwb" "q$q"
         ours+=("$reports/pwgs-q$q.json")
     done
     "$pwbench" "pwgs=$(IFS=,; echo "${ours[*]}")" "${curves[@]}" -o "$dir/report-$label" \

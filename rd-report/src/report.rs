@@ -33,19 +33,20 @@ fn digits(metric: Metric) -> usize {
 /// The runs of every curve, one table.
 fn runs_table(curves: &[Curve]) -> String {
     let mut s = String::from(
-        "| curve | bytes | PSNR | SSIM | LPIPS | DISTS | WD | training s | render s/view | peak MiB | report |\n",
+        "| curve | bytes | PSNR | SSIM | LPIPS | DISTS | WD | encode s | decode s | render s/view | peak MiB | report |\n",
     );
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for c in curves {
         for r in &c.runs {
             let scores: Vec<String> = Metric::ALL.iter().map(|&m| cell(r.score(m), digits(m))).collect();
             let _ = writeln!(
                 s,
-                "| {} | {:.0} | {} | {} | {} | {} | `{}` |",
+                "| {} | {:.0} | {} | {} | {} | {} | {} | `{}` |",
                 c.name,
                 r.bytes,
                 scores.join(" | "),
-                cell(r.training_seconds, 0),
+                cell(r.encode_seconds, 1),
+                cell(r.decode_seconds, 2),
                 cell(r.render_seconds, 3),
                 cell(r.peak_resident_mib, 0),
                 r.file
@@ -180,9 +181,9 @@ pub fn write_report(curves: &[Curve], reference: &Curve, title: &str, dir: &Path
     }
     md.push_str(
         "## Speed against error\n\nRender time: the mean time to render one decoded test view, at each rate \
-         point; training time: the encoder's. Times are the machines' the runs were made on.\n\n",
+         point; encode time: the encoder's (a scene's training). Times are the machines' the runs were made on.\n\n",
     );
-    for (axis, name) in [(Axis::RenderSeconds, "render"), (Axis::TrainingSeconds, "training")] {
+    for (axis, name) in [(Axis::RenderSeconds, "render"), (Axis::EncodeSeconds, "encode")] {
         for m in [Metric::Psnr, Metric::Dists] {
             let file = format!("speed_{name}_{}.svg", m.key());
             let caption = format!("{title}: {} against {name} time", m.label());

@@ -74,7 +74,12 @@ impl ViewRun {
 pub struct Run {
     pub file: String,
     pub bytes: f64,
-    pub training_seconds: Option<f64>,
+    /// The encoder's time: a scene's training, or what the caller measured for a file written
+    /// by other software (`pwenc compare --encode-seconds`).
+    pub encode_seconds: Option<f64>,
+    /// The time to decode the file, where the caller measured it (`pwenc compare
+    /// --decode-seconds`).
+    pub decode_seconds: Option<f64>,
     /// Mean time to render one test view from the decoded stream.
     pub render_seconds: Option<f64>,
     /// The whole encoding run's peak resident memory, where the report states it.
@@ -95,8 +100,12 @@ impl Run {
         let Some(bytes) = r["stream"]["bytes"].as_f64() else {
             bail!("{} has no stream size (was it written with -o?)", path.display());
         };
-        // A plain-base report nests its training time; an anchor-base report has it on top.
-        let training_seconds = r["training"]["seconds"].as_f64().or_else(|| r["training_seconds"].as_f64());
+        // A plain-base report nests its training time, an anchor-base report has it on top, and
+        // `pwenc compare` names the time its caller measured.
+        let encode_seconds = r["training"]["seconds"]
+            .as_f64()
+            .or_else(|| r["training_seconds"].as_f64())
+            .or_else(|| r["encode_seconds"].as_f64());
         let scores = scores_of(&r["mean"]);
         if scores.iter().all(Option::is_none) {
             bail!("{} has no mean scores (was it written with --eval?)", path.display());
@@ -119,7 +128,8 @@ impl Run {
         Ok(Self {
             file: path.display().to_string(),
             bytes,
-            training_seconds,
+            encode_seconds,
+            decode_seconds: r["decode_seconds"].as_f64(),
             render_seconds,
             peak_resident_mib: r["peak_resident_mib"].as_f64(),
             scores,
@@ -132,7 +142,7 @@ impl Run {
         match axis {
             Axis::Kilobytes => Some(self.bytes / 1000.0),
             Axis::RenderSeconds => self.render_seconds,
-            Axis::TrainingSeconds => self.training_seconds,
+            Axis::EncodeSeconds => self.encode_seconds,
         }
     }
 }
@@ -180,8 +190,8 @@ pub enum Axis {
     Kilobytes,
     /// Mean render time of a decoded test view (speed against error at each quality).
     RenderSeconds,
-    /// The encoder's training time (speed against error over iteration budgets).
-    TrainingSeconds,
+    /// The encoder's time (speed against error over iteration budgets or effort levels).
+    EncodeSeconds,
 }
 
 impl Axis {
@@ -189,7 +199,7 @@ impl Axis {
         match self {
             Axis::Kilobytes => "stream size (KB)",
             Axis::RenderSeconds => "render time per test view (s)",
-            Axis::TrainingSeconds => "training time (s)",
+            Axis::EncodeSeconds => "encode time (s)",
         }
     }
 }

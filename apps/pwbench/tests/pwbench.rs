@@ -4,13 +4,25 @@
 use std::path::Path;
 use std::process::Command;
 
-/// A report as `pwenc --report` writes it (only the fields pwbench reads).
-fn report(dir: &Path, name: &str, bytes: f64, psnr: f64, dists: f64, plain_base: bool) -> String {
+/// How a report states its times.
+#[derive(Clone, Copy)]
+enum Times {
+    /// `pwenc --report` of the plain base: the training time nested.
+    PlainBase,
+    /// `pwenc --report` of the anchor base: the training time on top.
+    AnchorBase,
+    /// `pwenc compare --encode-seconds 120 --decode-seconds 0.25`.
+    Compare,
+}
+
+/// A report as `pwenc --report` or `pwenc compare --report` writes it (only the fields pwbench
+/// reads).
+fn report(dir: &Path, name: &str, bytes: f64, psnr: f64, dists: f64, times: Times) -> String {
     let path = dir.join(format!("{name}.json"));
-    let training = if plain_base {
-        serde_json::json!({ "training": { "iterations": 2000, "seconds": 100.0 } })
-    } else {
-        serde_json::json!({ "iterations": 2000, "training_seconds": 120.0 })
+    let training = match times {
+        Times::PlainBase => serde_json::json!({ "training": { "iterations": 2000, "seconds": 100.0 } }),
+        Times::AnchorBase => serde_json::json!({ "iterations": 2000, "training_seconds": 120.0 }),
+        Times::Compare => serde_json::json!({ "encode_seconds": 120.0, "decode_seconds": 0.25 }),
     };
     // Two views around the mean; rendering takes longer the larger the stream.
     let views: Vec<serde_json::Value> = [-0.5, 0.5]
@@ -38,10 +50,19 @@ fn the_report_states_the_deltas_the_curves_were_made_with() {
     let d = tmp.path();
     // "half" needs half the bytes of "base" for every PSNR and DISTS.
     let points = [(100_000.0, 25.0, 0.14), (200_000.0, 26.5, 0.12), (400_000.0, 27.5, 0.10)];
-    let base: Vec<String> =
-        points.iter().enumerate().map(|(i, &(b, p, s))| report(d, &format!("b{i}"), b, p, s, true)).collect();
-    let half: Vec<String> =
-        points.iter().enumerate().map(|(i, &(b, p, s))| report(d, &format!("h{i}"), b / 2.0, p, s, false)).collect();
+    let base: Vec<String> = points
+        .iter()
+        .enumerate()
+        .map(|(i, &(b, p, s))| report(d, &format!("b{i}"), b, p, s, Times::PlainBase))
+        .collect();
+    let half: Vec<String> = points
+        .iter()
+        .enumerate()
+        .map(|(i, &(b, p, s))| {
+            let times = if i == 0 { Times::AnchorBase } else { Times::Compare };
+            report(d, &format!("h{i}"), b / 2.0, p, s, times)
+        })
+        .collect();
     let out = d.join("out");
     let status = Command::new(env!("CARGO_BIN_EXE_pwbench"))
         .args([format!("base={}", base.join(",")), format!("half={}", half.join(","))])
@@ -79,15 +100,20 @@ fn the_report_states_the_deltas_the_curves_were_made_with() {
         assert!(svg.starts_with("<svg") && svg.contains("half"), "rd_{metric}.svg");
     }
     assert!(!out.join("rd_wd.svg").exists(), "no run has WD");
-    // Speed against error: each run's mean render time (bytes / 1e6 + 0.005 s) and training time.
-    for chart in ["speed_render_psnr", "speed_render_dists", "speed_training_psnr", "speed_training_dists"] {
+    // Speed against error: each run's mean render time (bytes / 1e6 + 0.005 s) and encode time.
+    for chart in ["speed_render_psnr", "speed_render_dists", "speed_encode_psnr", "speed_encode_dists"] {
         let svg = std::fs::read_to_string(out.join(format!("{chart}.svg"))).unwrap();
         assert!(svg.contains("half") && md.contains(&format!("({chart}.svg)")), "{chart}");
     }
     let runs = md.split("## Runs").nth(1).unwrap();
-    let row = runs.lines().find(|l| l.starts_with("| half | 50000 |")).unwrap_or_else(|| panic!("{md}"));
-    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
-    assert_eq!((cells[8], cells[9], cells[10]), ("120", "0.055", "512"), "{row}");
+    // Columns after the five metrics: encode s, decode s, render s/view, peak MiB.
+    let cells_of = |bytes: &str| -> Vec<String> {
+        let row =
+            runs.lines().find(|l| l.starts_with(&format!("| half | {bytes} |"))).unwrap_or_else(|| panic!("{md}"));
+        row.split('|').map(|c| c.trim().to_string()).collect()
+    };
+    assert_eq!(cells_of("50000")[8..12], ["120.0", "-", "0.055", "512"], "an anchor-base report");
+    assert_eq!(cells_of("100000")[8..12], ["120.0", "0.25", "0.105", "512"], "a compare report with its times");
     // Per-view scores: both views of every run.
     let views = md.split("## Per-view scores").nth(1).unwrap_or_else(|| panic!("{md}"));
     assert_eq!(views.lines().filter(|l| l.starts_with("| ")).count(), 1 + 12, "a header and 6 runs x 2 views");

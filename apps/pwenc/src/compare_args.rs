@@ -9,9 +9,11 @@ use pwgs_encoder::metrics::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};
 use pwgs_encoder::metrics::weights::default_dirs;
-use pwgs_encoder::session::{CompareJob, Orbit};
+use pwgs_encoder::session::{CodingTimes, CompareJob, Orbit};
 
-use crate::values::{SpzAxesArg, check_extra_metrics, parse_color, parse_degrees_within, parse_positive};
+use crate::values::{
+    SpzAxesArg, check_extra_metrics, parse_color, parse_degrees_within, parse_positive, parse_seconds,
+};
 
 #[derive(Args)]
 pub(crate) struct CompareArgs {
@@ -66,6 +68,14 @@ pub(crate) struct CompareArgs {
     /// Write the sizes and scores as JSON (the layout `pwbench` reads).
     #[arg(long)]
     report: Option<PathBuf>,
+    /// The time that writing the candidate took, in seconds, as the caller measured it (our
+    /// encoder's, or another format's writer's): recorded in the report.
+    #[arg(long, value_parser = parse_seconds)]
+    encode_seconds: Option<f64>,
+    /// The time that reading the candidate back took, in seconds, as the caller measured it:
+    /// recorded in the report.
+    #[arg(long, value_parser = parse_seconds)]
+    decode_seconds: Option<f64>,
 }
 
 impl CompareArgs {
@@ -93,6 +103,7 @@ impl CompareArgs {
                 },
             },
             report: self.report,
+            times: CodingTimes { encode_seconds: self.encode_seconds, decode_seconds: self.decode_seconds },
         })
     }
 }

@@ -21,6 +21,14 @@ pub(crate) fn parse_positive(s: &str) -> Result<f32, String> {
     }
 }
 
+/// A time in seconds: finite and not negative.
+pub(crate) fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("`{s}` is not a finite number of seconds >= 0")),
+    }
+}
+
 /// An angle in degrees from `low` to `high`.
 pub(crate) fn parse_degrees_within(s: &str, low: f32, high: f32) -> Result<f32, String> {
     match s.parse::<f32>() {

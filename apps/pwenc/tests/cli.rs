@@ -284,13 +284,20 @@ fn compares_a_model_with_a_reference_on_an_orbit() {
     assert!(std::path::Path::new(&path("r/orbit_002.png")).is_file());
     assert!(std::path::Path::new(&path("r/gt/orbit_002.png")).is_file());
 
-    // A splat file is read as --from reads it; --size-of names the file whose size counts.
+    assert!(report.get("encode_seconds").is_none() && report.get("decode_seconds").is_none(), "{report}");
+
+    // A splat file is read as --from reads it; --size-of names the file whose size counts, and
+    // the times the caller measured go into the report.
     std::fs::write(path("in.splat"), pwgs_core::splat_file::gaussians_to_splat_bytes(&model)).unwrap();
     let args = ["compare", &path("in.ply"), &path("in.splat"), "-o", &path("r2"), "--size-of", &path("in.ply")];
-    let out = pwenc(&[&args[..], &["--report", &path("c2.json")], &orbit[..]].concat());
+    let times = ["--encode-seconds", "1.5", "--decode-seconds", "0.25"];
+    let out = pwenc(&[&args[..], &times[..], &["--report", &path("c2.json")], &orbit[..]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let report = json("c2.json");
+    assert_eq!((report["encode_seconds"].as_f64(), report["decode_seconds"].as_f64()), (Some(1.5), Some(0.25)));
     assert_eq!(report["stream"]["bytes"].as_u64().unwrap(), std::fs::metadata(path("in.ply")).unwrap().len());
+    let out = pwenc(&[&args[..], &["--encode-seconds=-1"], &orbit[..]].concat());
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("seconds"));
     let splat_psnr = report["mean"]["psnr"].as_f64().unwrap();
     assert!(splat_psnr.is_finite() && splat_psnr > 15.0, "{splat_psnr}");
 

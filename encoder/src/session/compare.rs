@@ -39,6 +39,17 @@ pub struct CompareJob {
     /// (`<dir>/orbit_NNN.png`, `<dir>/gt/orbit_NNN.png`).
     pub eval: EvalOptions,
     pub report: Option<PathBuf>,
+    pub times: CodingTimes,
+}
+
+/// How long writing and reading the candidate took, as whoever made it measured them: the
+/// report carries them beside the scores, so that `pwbench` shows each format's speed.
+#[derive(Debug, Clone, Copy, Default, Serialize)]
+pub struct CodingTimes {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub encode_seconds: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decode_seconds: Option<f64>,
 }
 
 /// A file and its size.
@@ -56,6 +67,8 @@ pub struct CompareReport {
     pub stream: SizedFile,
     pub orbit_views: usize,
     pub orbit_size: u32,
+    #[serde(flatten)]
+    pub times: CodingTimes,
     pub mean: MeanScore,
     pub views: Vec<ViewScore>,
 }
@@ -89,6 +102,7 @@ pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
         stream: SizedFile { path: sized.display().to_string(), bytes },
         orbit_views: views.len(),
         orbit_size: orbit.size,
+        times: job.times,
         mean,
         views,
     };

@@ -33,7 +33,7 @@ use pwgs_dataset::Dataset;
 
 pub use crate::plain::fidelity::Orbit;
 pub use anchor::{AnchorReport, AnchorStreamSummary, AnchorTraining};
-pub use compare::{CompareJob, CompareReport, compare_models};
+pub use compare::{CodingTimes, CompareJob, CompareReport, compare_models};
 pub use effort::{DEFAULT_EFFORT, MAX_EFFORT, Tools};
 pub use import::{ImportReport, ModelImport};
 pub use job::{BaseTraining, EncodeJob, EncodeReport, Input, Outputs, RunReport, SceneSummary, encode};
