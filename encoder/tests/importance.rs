@@ -48,6 +48,20 @@ fn classes_beat_uniform_steps_on_the_views_they_come_from() {
     }
 }
 
+/// A class view of a quarter of the first's pixels (half the focal length: the same view at half
+/// the resolution) counts as much as a full one: each Gaussian's weight about doubles.
+#[test]
+fn a_smaller_class_view_counts_as_a_full_one() {
+    let g = scene();
+    let options = RenderOptions::default();
+    let half = axis_camera(80, 60, 75.0, 75.0, 40.0, 30.0);
+    let one = Importance::of_views(&g, (&[camera()], &[]), &options).weights;
+    let both = Importance::of_views(&g, (&[camera(), half], &[]), &options).weights;
+    let (one, both): (f64, f64) = (one.iter().map(|&w| f64::from(w)).sum(), both.iter().map(|&w| f64::from(w)).sum());
+    // Unscaled, the half view would add a quarter (sum ratio 1.25).
+    assert!((both / one - 2.0).abs() < 0.1, "{both} against {one}");
+}
+
 #[test]
 fn unseen_gaussians_take_the_coarsest_class() {
     let mut g = scene();

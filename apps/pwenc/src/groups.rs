@@ -58,14 +58,14 @@ pub(crate) struct ImportArgs {
     pub(crate) effort: u8,
     /// Coarser steps for the Gaussians that show less (importance classes).
     ///
-    /// Each Gaussian is coded with steps by how much it shows from 57 views around and above
-    /// the model (SPEC.md section 6.5).
+    /// Each Gaussian is coded with steps by how much it shows from 98 views all round the model
+    /// (SPEC.md section 6.5).
     #[arg(long, hide_short_help = true)]
     pub(crate) importance_classes: bool,
     /// Drop the Gaussians that show least (with importance classes).
     ///
     /// Drops the faintest Gaussians, as many as leave every importance view (all round the
-    /// model, and closer in) at least 1 - 2^(3 - quality) of its colour (at most an eighth
+    /// model, and closer in) at least 1 - 2^(1 - quality) of its colour (at most an eighth
     /// lost).
     #[arg(long, hide_short_help = true)]
     pub(crate) prune_faint: bool,

@@ -188,7 +188,9 @@ fn compresses_an_imported_ply() {
         let args = [&["--from", &input, "-o", &output, "--quality", "7"][..], tools].concat();
         let out = pwenc(&args);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        assert!(String::from_utf8_lossy(&out.stdout).contains("importance: 57 views"), "{tools:?}");
+        // The class views: 57 on or above the horizon and 41 below it.
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert!(said.contains("importance: 98 views (57 of 512x512, 41 of 256x256)"), "{tools:?}: {said}");
         let classes = std::fs::read(path("classes.pwb")).unwrap();
         let container = pwgs_bitstream::Container::parse(&classes).unwrap();
         assert!(container.section(pwgs_codec::stream::classes::CLASSES).is_some());

@@ -47,14 +47,17 @@ pub struct QuantizerSettings {
     pub class_spread: u8,
     /// With pruning: the share of a view's pixels that the Gaussians dropped as faint may cover
     /// together, in every importance view ([`importance::Importance::prune_costs`]),
-    /// `2^(3 - quality)` (at most [`MAX_PRUNE_BUDGET`]). Their error when missing is about that
+    /// `2^(1 - quality)` (at most [`MAX_PRUNE_BUDGET`]). Their error when missing is about that
     /// share of the view's squared colour error, and a kept Gaussian's quantization error about
     /// a step squared: so the budget falls with the step squared, a factor 2 each quality level.
-    /// Measured on guitar at quality 8 against a floor on each Gaussian's own weight (0.5 times
-    /// the reference at quality 5, halving each level), at about equal bytes (428,104 against
-    /// 424,758): 50.89 dB against 51.32 on the orbit, 43.68 against 38.81 dB on an orbit from
-    /// 35 degrees below; budgets 4 and 16 times smaller kept more Gaussians than they paid for
-    /// on the orbit (0.9 to 2 dB below the floor's curve at equal bytes).
+    /// It replaced a floor on each Gaussian's own weight, which an orbit 35 degrees below the
+    /// horizon showed failing (guitar q8: 38.81 dB there against 43.68 with a budget 4 times
+    /// this one, at about equal bytes). The factor is a trade between views: with the classes'
+    /// weights from the whole sphere, at default effort, guitar q9 / q11 and biker q10 / q11 /
+    /// q12 against SOG at equal PSNR on the orbit 20 degrees up and on one 35 degrees below
+    /// (interpolated in log size): `2^(3 - quality)` 2.23x / 1.72x (extrapolated) and 1.76x /
+    /// 1.59x; this budget 2.19x / 1.86x and 1.74x / 1.67x; `2^(0 - quality)` 2.11x / 1.92x and
+    /// 1.71x / 1.71x.
     pub prune_budget: f32,
 }
 
@@ -76,7 +79,7 @@ impl QuantizerSettings {
             band_steps: [0.06 * factor, 0.08 * factor, 0.1 * factor],
             importance_classes: ((q as u8).div_ceil(2) + 1).min(importance::MAX_CLASSES),
             class_spread: 2,
-            prune_budget: sqrt2_power(2 * (3 - q)),
+            prune_budget: sqrt2_power(2 * (1 - q)),
         }
     }
 }
@@ -261,7 +264,7 @@ fn select(g: &Gaussians, coding: Coding) -> Result<Selection, CompressError> {
     Ok(Selection { visible, invisible, faint, reference: reference.unwrap_or(0.0) })
 }
 
-/// The most of a view's colour pruning may take, whatever the settings: quality 6's budget. A
+/// The most of a view's colour pruning may take, whatever the settings: quality 4's budget. A
 /// budget of 1 would drop every Gaussian (no view's weights add up to more than its pixels).
 const MAX_PRUNE_BUDGET: f32 = 0.125;
 

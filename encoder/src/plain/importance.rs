@@ -5,12 +5,12 @@
 //! weighted squared error for the bytes (measured: summing over the views codes guitar about
 //! 2% smaller at equal PSNR than taking each Gaussian's largest view).
 //!
-//! The views look at the scene's center from directions spread over the upper half of the
-//! sphere (the points on a grid cube's surface), so that no way round is favoured, and they
-//! need no trigonometry: with `+ - * / sqrt` only, the classes, and so the stream,
-//! are the same on every machine. Pruning (`--prune-faint`) must hold on any view a user may
-//! take, so its costs also come from views below the horizon and closer in
-//! ([`Importance::prune_costs`]).
+//! The views look at the scene's center from directions spread over the whole sphere (the
+//! points on a grid cube's surface), so that no way round is favoured, and they need no
+//! trigonometry: with `+ - * / sqrt` only, the classes, and so the stream, are the same on every
+//! machine. The classes must hold on any view a user may take ([`class_cameras`]: from above the
+//! horizon alone, guitar's default lost 7 to 10 dB on an orbit from below), and so must pruning
+//! (`--prune-faint`), whose costs also come from views closer in ([`Importance::prune_costs`]).
 #![cfg_attr(not(test), deny(clippy::disallowed_methods))] // the determinism rule: no platform math (clippy.toml)
 
 use glam::Vec3;
@@ -62,38 +62,33 @@ fn directions(n: i8) -> Vec<Vec3> {
 
 /// Cameras of `size` pixels and a 60-degree field of view at the scene's scale from its
 /// center, looking at it from those of the 98 [`directions`] on or above the horizon of `up`
-/// (57 when `up` is an axis): where a viewer walks around a scene, not from under its floor.
-/// These views measure the weights the classes come from.
+/// (57 when `up` is an axis): where a viewer walks around a scene most.
 pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camera>, CameraError> {
     ring_cameras(context, up, size, (&directions(5), 1.0), |d| d.dot(up) >= -1e-6)
 }
 
-/// The views that pruning must hold on besides [`cameras`], of [`OTHER_VIEW_SIZE`] pixels: the
-/// rest of the sphere (the 41 directions below the horizon) at the same distance, and the 26
-/// directions of a 3 x 3 x 3 grid at half the distance, closer in, where the model's middle
-/// fills twice the width.
-pub fn pruning_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
-    let mut out = below_cameras(context, up)?;
-    out.extend(ring_cameras(context, up, OTHER_VIEW_SIZE, (&directions(3), 0.5), |_| true)?);
-    Ok(out)
-}
-
-/// The views the refits ([`crate::plain::colour_refit`], [`crate::plain::shape_refit`]) fit
-/// the decoded model to: [`cameras`] and the rest of the sphere ([`below_cameras`]). A refit
-/// moves each Gaussian's values towards what its views show; fitted on the upper views alone, a
-/// Gaussian seen mostly from below the horizon was free to go wherever that helped them.
-/// Measured at level 4 (the colour refit, 8 iterations; `pwenc compare`, 8 views of 512x512),
-/// upper views alone against these: from 35 degrees below the horizon, guitar q9 39.73 dB
-/// against 45.02 dB (43.55 dB at level 2, no refit), biker q11 26.39 dB against 43.69 dB (40.93
-/// dB at level 2); on the orbit above it, at fewer bytes (the colours no view held had cost
-/// bytes too), guitar 476,627 bytes at 55.66 dB against 455,166 at 55.58, biker 1,096,408 at
-/// 56.17 against 1,070,483 at 55.95; guitar's views at half the distance alike (45.60 and 45.58
-/// dB). Adding the closer views of [`pruning_cameras`] as well changed guitar by less than 0.1 dB
-/// on each set.
-pub fn refit_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
+/// The views the classes' weights come from, which the refits ([`crate::plain::colour_refit`],
+/// [`crate::plain::shape_refit`]) also fit the decoded model to: [`cameras`] of [`VIEW_SIZE`]
+/// and the rest of the sphere ([`below_cameras`]), each of those counting as a view of
+/// [`VIEW_SIZE`] ([`Importance::of_views`]).
+///
+/// Weights from the upper views alone gave a Gaussian seen only from below the coarsest class:
+/// guitar's default (level 2, quality 10) scored 56.75 dB on the orbit 20 degrees above the
+/// horizon and 47.22 dB on one 35 degrees below, where uniform steps lose 0.15 dB. Refits fitted
+/// on the upper views alone let such a Gaussian go wherever that helped them (level 4 from below:
+/// guitar q9 39.73 dB against 45.02 dB with these views, biker q11 26.39 against 43.69 dB).
+pub fn class_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
     let mut out = cameras(context, up, VIEW_SIZE)?;
     out.extend(below_cameras(context, up)?);
     Ok(out)
+}
+
+/// The views that pruning must hold on besides [`class_cameras`], of [`OTHER_VIEW_SIZE`]
+/// pixels: the 26 directions of a 3 x 3 x 3 grid at half the distance, closer in, where the
+/// model's middle fills twice the width. (Counted in the classes' weights too, they coded guitar
+/// about 0.5% larger at equal PSNR on the orbit and alike from below.)
+pub fn closer_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
+    ring_cameras(context, up, OTHER_VIEW_SIZE, (&directions(3), 0.5), |_| true)
 }
 
 /// The 41 of the 98 [`directions`] below the horizon of `up`, at the distance of [`cameras`],
@@ -132,15 +127,18 @@ fn ring_cameras(
 /// What the importance views measure of each Gaussian.
 #[derive(Debug, Clone)]
 pub struct Importance {
-    /// Its blending weight summed over the [`cameras`] (pixels' worth of colour): what the
-    /// classes and the order of dropping for a target size come from.
+    /// Its blending weight summed over the class views (pixels' worth of colour, each view's
+    /// scaled to the first's pixel count): what the classes and the order of dropping for a
+    /// target size come from.
     pub weights: Vec<f32>,
     /// What dropping it costs in the view that loses most ([`prune_costs`]).
     pub prune_costs: Vec<f32>,
 }
 
 impl Importance {
-    /// The weights from `class_views`, the pruning costs from those and `other_views`.
+    /// The weights from `class_views` (each counting as a view of the first one's size: a view of
+    /// a quarter of its pixels sees each Gaussian at a quarter of the weight), the pruning costs
+    /// from those and `other_views`.
     pub fn of_views(g: &Gaussians, views: (&[Camera], &[Camera]), options: &RenderOptions) -> Self {
         Self::of_views_reporting(g, views, options, &|| {})
     }
@@ -161,8 +159,10 @@ impl Importance {
                 weights
             })
             .collect();
-        let weights = sum_in_order(&per_view[..class_views.len()], g.len());
         let pixels: Vec<f32> = all.iter().map(|c| c.width as f32 * c.height as f32).collect();
+        let full = pixels.first().copied().unwrap_or(1.0);
+        let scales: Vec<f32> = pixels[..class_views.len()].iter().map(|&p| full / p).collect();
+        let weights = sum_in_order(&per_view[..class_views.len()], &scales, g.len());
         Self { prune_costs: prune_costs(&per_view, &pixels), weights }
     }
 }
@@ -174,11 +174,12 @@ fn view_weights(g: &Gaussians, camera: &Camera, options: &RenderOptions) -> Vec<
     splat_weights(&bins, &splats, options, g.len())
 }
 
-/// Per-view weights summed in view order, so that the sums do not depend on threads.
-fn sum_in_order(per_view: &[Vec<f32>], gaussians: usize) -> Vec<f32> {
+/// Per-view weights, each view's times its scale, summed in view order, so that the sums do not
+/// depend on threads.
+fn sum_in_order(per_view: &[Vec<f32>], scales: &[f32], gaussians: usize) -> Vec<f32> {
     let mut total = vec![0.0f32; gaussians];
-    for view in per_view {
-        total.iter_mut().zip(view).for_each(|(t, w)| *t += w);
+    for (view, &scale) in per_view.iter().zip(scales) {
+        total.iter_mut().zip(view).for_each(|(t, w)| *t += scale * w);
     }
     total
 }
@@ -196,7 +197,7 @@ fn prune_costs(per_view: &[Vec<f32>], pixels: &[f32]) -> Vec<f32> {
     let gaussians = per_view.first().map_or(0, Vec::len);
     // Summed as weights, not as shares: ordering by shares (the closer views' 256x256 pixels
     // counting 4 times) coded guitar 1.7 dB lower at quality 10 for the same bytes.
-    let totals = sum_in_order(per_view, gaussians);
+    let totals = sum_in_order(per_view, &vec![1.0; per_view.len()], gaussians);
     let mut order: Vec<usize> = (0..gaussians).collect();
     order.sort_by(|&a, &b| totals[a].total_cmp(&totals[b]).then(a.cmp(&b)));
     // The largest share over views after each prefix: a maximum, the same in any view order.
@@ -275,27 +276,19 @@ mod tests {
     }
 
     #[test]
-    fn refits_fit_views_below_the_horizon_too() {
+    fn classes_and_refits_see_the_whole_sphere_and_pruning_closer_in() {
         let context = StreamContext { center: [1.0, 2.0, 3.0], scale: 2.0, background: [0.0; 3] };
         let up = Vec3::Z;
-        let views = refit_cameras(&context, up).unwrap();
+        let views = class_cameras(&context, up).unwrap();
         let height = |c: &Camera| (c.center() - Vec3::from(context.center)).dot(up);
         assert_eq!(views.len(), 57 + 41);
-        assert_eq!(views.iter().filter(|c| height(c) < -1e-3).count(), 41);
-        assert!(views.iter().take(57).all(|c| c.width == VIEW_SIZE && height(c) > -1e-3));
-        let distances = views.iter().map(|c| (c.center() - Vec3::from(context.center)).length());
-        assert!(distances.into_iter().all(|d| (d - 2.0).abs() < 1e-5));
-    }
-
-    #[test]
-    fn pruning_also_holds_below_the_horizon_and_closer_in() {
-        let context = StreamContext { center: [0.0; 3], scale: 2.0, background: [0.0; 3] };
-        let others = pruning_cameras(&context, Vec3::NEG_Y).unwrap();
-        assert_eq!(others.len(), 41 + 26);
-        let distances: Vec<f32> = others.iter().map(|c| c.center().length()).collect();
-        assert!(distances[..41].iter().all(|d| (d - 2.0).abs() < 1e-5), "{distances:?}");
-        assert!(distances[41..].iter().all(|d| (d - 1.0).abs() < 1e-5), "{distances:?}");
-        assert!(others[..41].iter().all(|c| c.center().y > 1e-3), "the rest of the sphere is below (+y)");
+        assert!(views[..57].iter().all(|c| c.width == VIEW_SIZE && height(c) > -1e-3));
+        assert!(views[57..].iter().all(|c| c.width == OTHER_VIEW_SIZE && height(c) < -1e-3));
+        let distance = |c: &Camera| (c.center() - Vec3::from(context.center)).length();
+        assert!(views.iter().all(|c| (distance(c) - 2.0).abs() < 1e-5));
+        let closer = closer_cameras(&context, up).unwrap();
+        assert_eq!(closer.len(), 26);
+        assert!(closer.iter().all(|c| (distance(c) - 1.0).abs() < 1e-5 && c.width == OTHER_VIEW_SIZE));
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! kept Gaussian at its decoded position, a few epochs of Adam on the rasterizer's analytic
 //! gradients ([`crate::train::backward`]) move the scales, rotations, opacities and SH (the bands the
 //! model uses) so that the model renders closest to itself on the refit views
-//! ([`crate::plain::importance::refit_cameras`]). The refitted values then go through the same
+//! ([`crate::plain::importance::class_cameras`]). The refitted values then go through the same
 //! quantizer as any other; nothing in the stream changes but their values.
 //!
 //! Most of what the refit gains is finer than the quantizer's steps and goes when they are

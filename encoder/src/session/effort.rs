@@ -38,7 +38,7 @@ impl Tools {
     /// are in docs/results/splat-formats.md ("Effort levels"). No level searches the steps: the
     /// search scores its views before the refits and coarsens what they would have made up
     /// for (level 9 with it coded guitar 4.6% larger at equal PSNR than level 5 without it).
-    /// The colour refit needs its views dense ([`crate::plain::importance::refit_cameras`]): on
+    /// The colour refit needs its views dense ([`crate::plain::importance::class_cameras`]): on
     /// every other one of the 57 upper views (before the views below were added) it fitted those
     /// views and coded biker larger at a lower PSNR than without a refit.
     pub fn of_effort(effort: u8) -> Self {

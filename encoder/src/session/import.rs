@@ -212,19 +212,19 @@ fn plan_coding(
     let start = Instant::now();
     let up = Vec3::from(job.up);
     let placed = || views_problem("importance", context);
-    let cameras = importance::cameras(context, up, importance::VIEW_SIZE).with_context(placed)?;
+    let cameras = importance::class_cameras(context, up).with_context(placed)?;
     let others =
-        if tools.prune_faint { importance::pruning_cameras(context, up).with_context(placed)? } else { Vec::new() };
+        if tools.prune_faint { importance::closer_cameras(context, up).with_context(placed)? } else { Vec::new() };
     let bar = phase_bar(cameras.len() + others.len(), "importance views");
     let measured = Importance::of_views_reporting(gaussians, (&cameras, &others), options, &|| bar.inc(1));
     bar.finish_and_clear();
     let hidden = measured.weights.iter().filter(|&&w| w == 0.0).count();
+    let full = cameras.iter().filter(|c| c.width == importance::VIEW_SIZE).count();
     say!(
-        "importance: {} views ({} of {size}x{size}, {} of {other}x{other}) in {:.1} s; {hidden} of {} Gaussians \
-         never blended in the upper ones",
+        "importance: {} views ({full} of {size}x{size}, {} of {other}x{other}) in {:.1} s; {hidden} of {} Gaussians \
+         never blended in the class views",
         cameras.len() + others.len(),
-        cameras.len(),
-        others.len(),
+        cameras.len() + others.len() - full,
         start.elapsed().as_secs_f64(),
         gaussians.len(),
         size = importance::VIEW_SIZE,
@@ -241,7 +241,8 @@ fn plan_coding(
         plan.step_search = Some(outcome);
     }
     let refits = tools.refit_shapes.is_some() || tools.refit_colours.is_some();
-    let refit_views = importance::refit_cameras(context, up).with_context(placed)?;
+    // The refits fit the class views.
+    let refit_views = cameras;
     let held = refit_bytes(gaussians.len(), refit_views.len());
     if refits && held > REFIT_MEMORY_BUDGET {
         say!(
@@ -300,7 +301,7 @@ fn plan_coding(
 
 /// The refits hold every refit view's splats and tile lists at once: biker (130,657 Gaussians
 /// kept) peaked at 1.1 GB with the colour refit on 57 views and 1.66 GB on the 98 of
-/// [`importance::refit_cameras`] (whose 41 smaller views hold about as much each: the splats,
+/// [`importance::class_cameras`] (whose 41 smaller views hold about as much each: the splats,
 /// not the tiles, fill them), about 150 bytes per Gaussian and view. Beyond the budget an import
 /// leaves the refits out, with a message, rather than exhaust memory (about 290,000 Gaussians
 /// fit; a 3M-Gaussian model would hold about 41 GB).
