@@ -63,14 +63,14 @@ fn directions(n: i8) -> Vec<Vec3> {
 /// Cameras of `size` pixels and a 60-degree field of view at the scene's scale from its
 /// center, looking at it from those of the 98 [`directions`] on or above the horizon of `up`
 /// (57 when `up` is an axis): where a viewer walks around a scene most.
-pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camera>, CameraError> {
+fn upper_cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camera>, CameraError> {
     ring_cameras(context, up, size, (&directions(5), 1.0), |d| d.dot(up) >= -1e-6)
 }
 
 /// The views the classes' weights come from, which the refits ([`crate::plain::colour_refit`],
-/// [`crate::plain::shape_refit`]) also fit the decoded model to: [`cameras`] of [`VIEW_SIZE`]
-/// and the rest of the sphere ([`below_cameras`]), each of those counting as a view of
-/// [`VIEW_SIZE`] ([`Importance::of_views`]).
+/// [`crate::plain::shape_refit`]) also fit the decoded model to: [`upper_cameras`] of
+/// [`VIEW_SIZE`] and the rest of the sphere ([`below_cameras`]), each of those counting as a view
+/// of [`VIEW_SIZE`] ([`Importance::of_views`]).
 ///
 /// Weights from the upper views alone gave a Gaussian seen only from below the coarsest class:
 /// guitar's default (level 2, quality 10) scored 56.75 dB on the orbit 20 degrees above the
@@ -78,7 +78,7 @@ pub fn cameras(context: &StreamContext, up: Vec3, size: u32) -> Result<Vec<Camer
 /// on the upper views alone let such a Gaussian go wherever that helped them (level 4 from below:
 /// guitar q9 39.73 dB against 45.02 dB with these views, biker q11 26.39 against 43.69 dB).
 pub fn class_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
-    let mut out = cameras(context, up, VIEW_SIZE)?;
+    let mut out = upper_cameras(context, up, VIEW_SIZE)?;
     out.extend(below_cameras(context, up)?);
     Ok(out)
 }
@@ -91,8 +91,8 @@ pub fn closer_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, 
     ring_cameras(context, up, OTHER_VIEW_SIZE, (&directions(3), 0.5), |_| true)
 }
 
-/// The 41 of the 98 [`directions`] below the horizon of `up`, at the distance of [`cameras`],
-/// of [`OTHER_VIEW_SIZE`] pixels.
+/// The 41 of the 98 [`directions`] below the horizon of `up`, at the distance of
+/// [`upper_cameras`], of [`OTHER_VIEW_SIZE`] pixels.
 fn below_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, CameraError> {
     ring_cameras(context, up, OTHER_VIEW_SIZE, (&directions(5), 1.0), |d| d.dot(up) < -1e-6)
 }
@@ -261,13 +261,13 @@ mod tests {
     #[test]
     fn the_views_surround_the_center_at_the_scene_scale() {
         let context = StreamContext { center: [1.0, 2.0, 3.0], scale: 4.0, background: [0.0; 3] };
-        let cams = cameras(&context, Vec3::NEG_Y, 64).unwrap();
+        let cams = upper_cameras(&context, Vec3::NEG_Y, 64).unwrap();
         assert_eq!(cams.len(), 57);
         let mean = cams.iter().map(|c| c.center()).sum::<Vec3>() / 57.0;
         // The ring on the horizon and the upper half: the mean is above the center (-y).
         assert!((mean.x - 1.0).abs() < 1e-5 && (mean.z - 3.0).abs() < 1e-5 && mean.y < 2.0 - 1.0, "{mean}");
         assert!(cams.iter().all(|c| c.center().y <= 2.0 + 1e-5), "a view from below");
-        assert!(cameras(&context, Vec3::ZERO, 64).is_err());
+        assert!(upper_cameras(&context, Vec3::ZERO, 64).is_err());
         for c in &cams {
             assert!((c.center().distance(Vec3::new(1.0, 2.0, 3.0)) - 4.0).abs() < 1e-5);
             let ahead = c.world_to_camera(Vec3::new(1.0, 2.0, 3.0));
