@@ -17,12 +17,14 @@ pub mod llff;
 pub mod normalization;
 pub mod npy;
 pub mod scene;
+mod selection;
 pub mod synthetic;
 pub mod transforms;
 pub mod undistort;
 
 pub use normalization::SceneNormalization;
 pub use scene::{Dataset, LoadOptions, NamedCamera, SceneCameras, View, load_cameras, load_scene};
+pub use selection::{SceneViews, ViewSplit};
 
 use std::path::PathBuf;
 

@@ -79,6 +79,14 @@ pub struct NamedCamera {
     pub camera: Camera,
 }
 
+impl NamedCamera {
+    /// The view's name as a file stem: its image's name without folders or extension (what
+    /// renders of the view are saved as).
+    pub fn stem(&self) -> String {
+        Path::new(&self.name).file_stem().map_or_else(|| self.name.clone(), |s| s.to_string_lossy().into())
+    }
+}
+
 /// The cameras of a scene's views, split as [`load_scene`] splits them.
 #[derive(Debug, Clone)]
 pub struct SceneCameras {

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Parser, Subcommand, ValueEnum};
+use clap::{Args, Parser, Subcommand};
 use pwgs_codec::anchor::AnchorModel;
 use pwgs_codec::scene::{Base, Scene};
 use pwgs_codec::stream;
@@ -20,7 +20,7 @@ use pwgs_core::camera_json::parse_camera;
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::say;
 use pwgs_core::splat_file::{SpzVersion, gaussians_to_spz_bytes};
-use pwgs_dataset::{LoadOptions, load_cameras};
+use pwgs_dataset::{LoadOptions, SceneViews, ViewSplit, load_cameras};
 use pwgs_render::anchor_export::{agreement_psnr, export_gaussians, sphere_cameras};
 
 #[derive(Parser)]
@@ -45,13 +45,6 @@ enum Command {
     Info { stream: PathBuf },
 }
 
-#[derive(Clone, Copy, PartialEq, ValueEnum)]
-enum Split {
-    Test,
-    Train,
-    All,
-}
-
 #[derive(Args)]
 struct DecodeArgs {
     /// The stream (.pwb).
@@ -64,9 +57,9 @@ struct DecodeArgs {
     /// -o, one PNG per view named after its image.
     #[arg(long, requires = "output")]
     views: Option<PathBuf>,
-    /// Which views of --views to render.
-    #[arg(long, value_enum, default_value = "test")]
-    split: Split,
+    /// Which views of --views to render: test, train or all.
+    #[arg(long, default_value = "test")]
+    split: ViewSplit,
     /// Image downscale of --views (as at encoding, e.g. 8 for fern at 504x378).
     #[arg(long, default_value_t = 1)]
     downscale: u32,
@@ -185,7 +178,7 @@ fn decode(args: DecodeArgs) -> Result<()> {
     }
     if let Some(folder) = &args.views {
         let out = args.output.as_deref().expect("clap requires -o");
-        let dataset = DatasetViews { scene: folder, split: args.split, downscale: args.downscale };
+        let dataset = SceneViews { scene: folder.clone(), split: args.split, downscale: args.downscale };
         render_dataset(scene, wrapped, &dataset, args.max_pixels, out)?;
     }
     Ok(())
@@ -269,29 +262,11 @@ fn export_anchors(
     Ok(export)
 }
 
-/// The views of `pwdec --views`.
-struct DatasetViews<'a> {
-    scene: &'a Path,
-    split: Split,
-    downscale: u32,
-}
-
-fn render_dataset(scene: &Scene, wrapped: bool, views: &DatasetViews, max_pixels: u64, out: &Path) -> Result<()> {
-    let DatasetViews { scene: folder, split, downscale } = *views;
-    let options = LoadOptions { downscale, ..Default::default() };
-    let data = load_cameras(folder, &options).with_context(|| format!("cannot load the scene {}", folder.display()))?;
-    let views: Vec<_> = match split {
-        Split::Test => data.test.iter().collect(),
-        Split::Train => data.train.iter().collect(),
-        Split::All => data.train.iter().chain(&data.test).collect(),
-    };
-    if views.is_empty() {
-        bail!("{} has no views in that split", folder.display());
-    }
+fn render_dataset(scene: &Scene, wrapped: bool, views: &SceneViews, max_pixels: u64, out: &Path) -> Result<()> {
+    let views = views.cameras().with_context(|| format!("cannot load the scene {}", views.scene.display()))?;
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     for view in views {
-        let stem = Path::new(&view.name).file_stem().map_or_else(|| view.name.clone(), |s| s.to_string_lossy().into());
-        render_to(scene, wrapped, &view.camera, max_pixels, &out.join(format!("{stem}.png")), None)?;
+        render_to(scene, wrapped, &view.camera, max_pixels, &out.join(format!("{}.png", view.stem())), None)?;
     }
     Ok(())
 }

@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 use pwgs_cli::values::parse_vector;
+use pwgs_dataset::{SceneViews, ViewSplit};
 use pwgs_encoder::metrics::evaluate::EvalOptions;
 use pwgs_encoder::metrics::lpips::LpipsInput;
 use pwgs_encoder::metrics::suite::{DEFAULT_WD_LOG2_SIGMA, Metric, SuiteSettings};
@@ -53,6 +54,16 @@ pub(crate) struct CompareArgs {
     /// The orbit views' field of view in degrees.
     #[arg(long, default_value_t = 60.0, value_parser = |s: &str| parse_degrees_within(s, 1.0, 170.0))]
     orbit_fov: f32,
+    /// Score on the cameras of this scene folder (COLMAP, transforms.json or LLFF) instead of the
+    /// orbit: a model trained on that capture, seen from its own views.
+    #[arg(long)]
+    views: Option<PathBuf>,
+    /// Which views of --views: test, train or all.
+    #[arg(long, default_value = "test", requires = "views")]
+    split: ViewSplit,
+    /// Image downscale of --views (the views' size: e.g. 8 for fern at 504x378).
+    #[arg(long, default_value_t = 1, requires = "views", value_parser = clap::value_parser!(u32).range(1..=64))]
+    downscale: u32,
     /// Background: `white`, `black` or `r,g,b`.
     #[arg(long, default_value = "black", value_parser = parse_color)]
     background: [f32; 3],
@@ -92,6 +103,7 @@ impl CompareArgs {
                 fov_degrees: self.orbit_fov,
                 ..Orbit::ring(self.orbit as usize, self.up, self.orbit_size)
             },
+            views: self.views.map(|scene| SceneViews { scene, split: self.split, downscale: self.downscale }),
             background: self.background,
             eval: EvalOptions {
                 dir: self.output,

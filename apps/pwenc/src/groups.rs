@@ -43,6 +43,14 @@ pub(crate) struct ImportArgs {
     /// Width and height of the orbit views.
     #[arg(long, default_value_t = 512, hide_short_help = true)]
     pub(crate) orbit_size: u32,
+    /// Weigh the views of the capture the model was trained on too: the cameras of this scene
+    /// folder (COLMAP, transforms.json or LLFF), all of them.
+    ///
+    /// The importance classes, pruning and refits then hold on the capture's own views as well
+    /// as on the views all round the model (at most 64 of them, each resized to 512 pixels
+    /// on its longer side).
+    #[arg(long, value_name = "SCENE")]
+    pub(crate) views: Option<PathBuf>,
     /// Save the orbit renders (input and decoded) as PNGs in this folder.
     #[arg(long, requires = "orbit", hide_short_help = true)]
     pub(crate) orbit_renders: Option<PathBuf>,
@@ -50,7 +58,8 @@ pub(crate) struct ImportArgs {
     ///
     /// Each level is a fixed set of the tools below: 0 uniform steps, 1 importance classes, 2
     /// with pruning, 3 to 5 with a colour refit (2 and 8 iterations, then 8 rounded in
-    /// quarters), 6 with the step search, 7 to 9 with a shape refit and longer refits. The
+    /// quarters), 6 to 9 with a shape refit too (6, 12, 12 and 24 epochs; 8 and 9 with 16
+    /// colour iterations). The
     /// options below add their tool to the level's. With --target-bytes the refits are left
     /// out.
     #[arg(long, default_value_t = DEFAULT_EFFORT, value_name = "0..9",

@@ -99,11 +99,11 @@ enum Command {
         help: HelpFlag,
     },
     /// Score a model (a pwgs stream, or a splat file in any format --from reads) against a
-    /// reference model's renders on an orbit around the reference: PSNR, SSIM and --metrics,
-    /// per view and on average, with the compared file's size.
+    /// reference model's renders on an orbit around the reference (or a capture's own views):
+    /// PSNR, SSIM and --metrics, per view and on average, with the compared file's size.
     Compare {
         #[command(flatten)]
-        args: CompareArgs,
+        args: Box<CompareArgs>,
         #[command(flatten)]
         help: HelpFlag,
     },

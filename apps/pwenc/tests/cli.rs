@@ -56,6 +56,48 @@ fn trains_evaluates_and_writes_outputs() {
     assert!(capped.gaussians.len() <= 40, "{} Gaussians", capped.gaussians.len());
 }
 
+/// A model trained on a capture, seen from the capture's own views: `pwenc compare --views`
+/// scores on them instead of an orbit, and `pwenc --from --views` weighs them in the import.
+#[test]
+fn a_captures_own_views_score_and_weigh_an_import() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
+    let json =
+        |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(dir(name)).unwrap()).unwrap() };
+    let out = pwenc(&["generate-scene", &dir("scene"), "--width", "48", "--height", "36", "--views", "9"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let train = [&dir("scene"), "--base", "3dgs", "--no-wrapper", "--iters", "10", "--export-ply", &dir("model.ply")];
+    assert!(pwenc(&train).status.success());
+
+    let import = ["--from", &dir("model.ply"), "-o", &dir("s.pwb"), "--views", &dir("scene")];
+    let out = pwenc(&import);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains(", 9 of the capture)"), "{stdout}");
+
+    let compare = ["compare", &dir("model.ply"), &dir("s.pwb"), "-o", &dir("r"), "--views", &dir("scene")];
+    let out = pwenc(&[&compare[..], &["--report", &dir("c.json")]].concat());
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report = json("c.json");
+    // The test views of a scene without its own split: the 1st and the 9th.
+    let names: Vec<&str> = report["views"].as_array().unwrap().iter().map(|v| v["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["view_000", "view_008"]);
+    assert!(report["mean"]["psnr"].as_f64().unwrap() > 20.0, "{report}");
+    assert!(report.get("orbit_size").is_none() && report["views_from"].as_str().unwrap().contains("(test views)"));
+    assert!(std::path::Path::new(&dir("r/view_008.png")).is_file());
+    assert!(std::path::Path::new(&dir("r/gt/view_008.png")).is_file());
+    let all = pwenc(&[&compare[..], &["--split", "all", "--downscale", "2", "--report", &dir("all.json")]].concat());
+    assert!(all.status.success(), "{}", String::from_utf8_lossy(&all.stderr));
+    assert_eq!(json("all.json")["views"].as_array().unwrap().len(), 9);
+
+    // A scene that is not there is named, and no stream is written.
+    let out = pwenc(&["--from", &dir("model.ply"), "-o", &dir("t.pwb"), "--views", &dir("nowhere")]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("nowhere"));
+    assert!(!std::path::Path::new(&dir("t.pwb")).exists());
+    let out = pwenc(&["compare", &dir("model.ply"), &dir("s.pwb"), "-o", &dir("r2"), "--split", "train"]);
+    assert!(!out.status.success() && String::from_utf8_lossy(&out.stderr).contains("--views"));
+}
+
 /// A build without the `gpu` feature trains on the CPU: `--device auto` (the default) says so in
 /// the report, and `--device gpu` is refused before any work, naming the feature.
 #[cfg(not(feature = "gpu"))]

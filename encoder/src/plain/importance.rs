@@ -30,9 +30,10 @@ pub const VIEW_SIZE: u32 = 512;
 /// long as its 57 class views of [`VIEW_SIZE`] alone did.
 pub const OTHER_VIEW_SIZE: u32 = 256;
 /// Most pixels an import's [`Importance`] renders, whatever the up direction (the 98 directions at
-/// [`VIEW_SIZE`], the 26 closer ones at [`OTHER_VIEW_SIZE`]): what bounds an import's work.
-pub const MAX_RENDERED_PIXELS: u64 =
-    98 * (VIEW_SIZE as u64 * VIEW_SIZE as u64) + 26 * (OTHER_VIEW_SIZE as u64 * OTHER_VIEW_SIZE as u64);
+/// [`VIEW_SIZE`], at most [`MAX_CAPTURE_VIEWS`] of a capture, the 26 closer ones at
+/// [`OTHER_VIEW_SIZE`]): what bounds an import's work.
+pub const MAX_RENDERED_PIXELS: u64 = (98 + MAX_CAPTURE_VIEWS as u64) * (VIEW_SIZE as u64 * VIEW_SIZE as u64)
+    + 26 * (OTHER_VIEW_SIZE as u64 * OTHER_VIEW_SIZE as u64);
 /// Most classes: 0 (the reference) to 6 (steps 64 times coarser, positions 6 levels coarser;
 /// classes that far down code guitar about 1.6% smaller at equal PSNR at quality 10 than
 /// stopping at 16 times).
@@ -81,6 +82,28 @@ pub fn class_cameras(context: &StreamContext, up: Vec3) -> Result<Vec<Camera>, C
     let mut out = upper_cameras(context, up, VIEW_SIZE)?;
     out.extend(below_cameras(context, up)?);
     Ok(out)
+}
+
+/// Most views of a capture ([`capture_cameras`]) an import weighs.
+pub const MAX_CAPTURE_VIEWS: usize = 64;
+
+/// A capture's own cameras as importance views, besides [`class_cameras`] (a model trained on a
+/// capture is mostly seen from where it was taken, which for a scene shot from the front is a
+/// small part of the sphere): at most [`MAX_CAPTURE_VIEWS`] of them, spread over the list, each
+/// resized to [`VIEW_SIZE`] pixels on its longer side (its weights then count as a view of that
+/// size, [`Importance::of_views`]).
+pub fn capture_cameras(cameras: &[Camera]) -> Result<Vec<Camera>, CameraError> {
+    let kept = cameras.len().min(MAX_CAPTURE_VIEWS);
+    (0..kept)
+        .map(|k| {
+            let c = &cameras[k * cameras.len() / kept];
+            let longer = c.width.max(c.height);
+            // Rounded to the nearest pixel, at least one.
+            let side =
+                |s: u32| ((u64::from(s) * u64::from(VIEW_SIZE) + u64::from(longer) / 2) / u64::from(longer)).max(1);
+            c.resized(side(c.width) as u32, side(c.height) as u32)
+        })
+        .collect()
 }
 
 /// The views that pruning must hold on besides [`class_cameras`], of [`OTHER_VIEW_SIZE`]
@@ -326,5 +349,28 @@ mod tests {
         // Every Gaussian in class 0: still two classes (SPEC.md 6.5), one level refined.
         let flat = classes(&[8.0; 5], 8.0, (7, 2), 6);
         assert_eq!((flat.factors.len(), flat.refine), (2, 1));
+    }
+
+    #[test]
+    fn a_capture_counts_at_most_64_views_at_the_class_views_size() {
+        let intrinsics = Intrinsics { width: 1008, height: 756, fx: 800.0, fy: 800.0, cx: 504.0, cy: 378.0 };
+        let eye = |k: usize| Vec3::new(k as f32, 0.0, -5.0);
+        let capture: Vec<Camera> =
+            (0..100).map(|k| Camera::look_at(intrinsics, eye(k), Vec3::ZERO, Vec3::NEG_Y).unwrap()).collect();
+        let views = capture_cameras(&capture).unwrap();
+        assert_eq!(views.len(), MAX_CAPTURE_VIEWS);
+        // Spread over the list, from its first view on.
+        assert_eq!(views[0].center(), capture[0].center());
+        assert!(views[63].center().distance(capture[98].center()) < 1e-5, "{}", views[63].center());
+        for v in &views {
+            assert_eq!((v.width, v.height), (VIEW_SIZE, 384));
+            assert!((v.fx - 800.0 * 512.0 / 1008.0).abs() < 1e-3, "{}", v.fx);
+        }
+        // A short list is kept whole; a portrait view is 512 high.
+        let portrait = Intrinsics { width: 300, height: 400, fx: 300.0, fy: 300.0, cx: 150.0, cy: 200.0 };
+        let few = [Camera::look_at(portrait, eye(0), Vec3::ZERO, Vec3::NEG_Y).unwrap()];
+        let views = capture_cameras(&few).unwrap();
+        assert_eq!((views.len(), views[0].width, views[0].height), (1, 384, VIEW_SIZE));
+        assert!(capture_cameras(&[]).unwrap().is_empty());
     }
 }

@@ -1,6 +1,6 @@
 //! `pwenc compare`: how closely a model in another form (a splat file in any format `--from`
 //! reads, or a pwgs stream) renders like a reference model, on an orbit of views around the
-//! reference. This is how streams are compared with other formats (SPZ, SOG, compressed PLY)
+//! reference or on the views of the capture it was trained on. This is how streams are compared with other formats (SPZ, SOG, compressed PLY)
 //! at equal cameras; the report has the layout `pwbench` reads (the file's size as the
 //! stream's, mean and per-view scores), so formats and qualities plot as RD curves.
 
@@ -12,7 +12,7 @@ use pwgs_codec::scene::{Base, Scene};
 use pwgs_codec::stream;
 use pwgs_core::say;
 use pwgs_core::splat_file::SpzAxes;
-use pwgs_dataset::View;
+use pwgs_dataset::{NamedCamera, SceneViews, View};
 use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
@@ -34,6 +34,8 @@ pub struct CompareJob {
     /// The axes of `.spz` files that name none.
     pub spz_axes: SpzAxes,
     pub orbit: Orbit,
+    /// A capture's own views to score on instead of the orbit (the reference trained on it).
+    pub views: Option<SceneViews>,
     pub background: [f32; 3],
     /// Metrics besides PSNR and SSIM, and where the renders and their ground truth go
     /// (`<dir>/orbit_NNN.png`, `<dir>/gt/orbit_NNN.png`).
@@ -65,8 +67,14 @@ pub struct CompareReport {
     pub candidate: String,
     /// The compared file's size (named `stream` as in `pwenc --report`, which `pwbench` reads).
     pub stream: SizedFile,
+    /// The views scored: the orbit's, or those of `views_from`.
     pub orbit_views: usize,
-    pub orbit_size: u32,
+    /// The orbit views' width and height (none with `views_from`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub orbit_size: Option<u32>,
+    /// The scene folder and split whose cameras were scored, instead of an orbit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub views_from: Option<String>,
     #[serde(flatten)]
     pub times: CodingTimes,
     pub mean: MeanScore,
@@ -84,15 +92,18 @@ pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
     let sized = job.size_of.as_ref().unwrap_or(&job.candidate);
     let bytes = std::fs::metadata(sized).with_context(|| format!("cannot read {}", sized.display()))?.len();
 
-    let orbit = &job.orbit;
-    let cameras = orbit_cameras(&context, orbit)?;
+    let cameras = match &job.views {
+        Some(views) => {
+            views.cameras().with_context(|| format!("cannot load the views of {}", views.scene.display()))?
+        }
+        None => (orbit_cameras(&context, &job.orbit)?.into_iter().enumerate())
+            .map(|(i, camera)| NamedCamera { name: format!("orbit_{i:03}"), camera })
+            .collect(),
+    };
     let options = RenderOptions { background: job.background, ..Default::default() };
-    let truths = renders(&reference, &cameras, &options);
-    let views: Vec<View> = cameras
-        .into_iter()
-        .zip(truths)
-        .enumerate()
-        .map(|(i, (camera, image))| View { name: format!("orbit_{i:03}"), camera, image })
+    let truths = renders(&reference, &cameras.iter().map(|c| c.camera).collect::<Vec<_>>(), &options);
+    let views: Vec<View> = (cameras.into_iter().zip(truths))
+        .map(|(view, image)| View { name: view.stem(), camera: view.camera, image })
         .collect();
     let (views, mean) = evaluation.run(&candidate, &views)?;
     say!("{}: {bytes} bytes ({})", job.candidate.display(), sized.display());
@@ -101,7 +112,8 @@ pub fn compare_models(job: &CompareJob) -> Result<CompareReport> {
         candidate: job.candidate.display().to_string(),
         stream: SizedFile { path: sized.display().to_string(), bytes },
         orbit_views: views.len(),
-        orbit_size: orbit.size,
+        orbit_size: job.views.is_none().then_some(job.orbit.size),
+        views_from: job.views.as_ref().map(|v| format!("{} ({} views)", v.scene.display(), v.split.name())),
         times: job.times,
         mean,
         views,

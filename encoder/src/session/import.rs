@@ -11,6 +11,7 @@ use pwgs_codec::scene::{Base, Scene};
 use pwgs_core::gaussians::Gaussians;
 use pwgs_core::say;
 use pwgs_core::splat_file::SpzAxes;
+use pwgs_dataset::SceneViews;
 use pwgs_render::raster::RenderOptions;
 use serde::Serialize;
 
@@ -40,8 +41,11 @@ pub struct ModelImport {
     pub orbit: Option<Orbit>,
     /// Save the orbit's renders (input and decoded) as PNGs here.
     pub orbit_renders: Option<PathBuf>,
-    /// The model's up direction: the importance views are on or above its horizon.
+    /// The model's up direction (the orbit's, and the importance views' horizon).
     pub up: [f32; 3],
+    /// The views of the capture the model was trained on, when known: the importance views
+    /// include them ([`importance::capture_cameras`]).
+    pub capture: Option<SceneViews>,
     /// The tools that code it smaller ([`Tools::of_effort`]).
     pub tools: Tools,
 }
@@ -212,19 +216,29 @@ fn plan_coding(
     let start = Instant::now();
     let up = Vec3::from(job.up);
     let placed = || views_problem("importance", context);
-    let cameras = importance::class_cameras(context, up).with_context(placed)?;
+    let mut cameras = importance::class_cameras(context, up).with_context(placed)?;
+    let all_round = cameras.len();
+    if let Some(views) = &job.capture {
+        let scene = || format!("cannot use the views of {}", views.scene.display());
+        let capture: Vec<_> = views.cameras().with_context(scene)?.into_iter().map(|v| v.camera).collect();
+        cameras.extend(importance::capture_cameras(&capture).with_context(scene)?);
+    }
     let others =
         if tools.prune_faint { importance::closer_cameras(context, up).with_context(placed)? } else { Vec::new() };
     let bar = phase_bar(cameras.len() + others.len(), "importance views");
     let measured = Importance::of_views_reporting(gaussians, (&cameras, &others), options, &|| bar.inc(1));
     bar.finish_and_clear();
     let hidden = measured.weights.iter().filter(|&&w| w == 0.0).count();
-    let full = cameras.iter().filter(|c| c.width == importance::VIEW_SIZE).count();
+    let full = cameras[..all_round].iter().filter(|c| c.width == importance::VIEW_SIZE).count();
+    let capture = match cameras.len() - all_round {
+        0 => String::new(),
+        n => format!(", {n} of the capture"),
+    };
     say!(
-        "importance: {} views ({full} of {size}x{size}, {} of {other}x{other}) in {:.1} s; {hidden} of {} Gaussians \
-         never blended in the class views",
+        "importance: {} views ({full} of {size}x{size}, {} of {other}x{other}{capture}) in {:.1} s; {hidden} of {} \
+         Gaussians never blended in the class views",
         cameras.len() + others.len(),
-        cameras.len() + others.len() - full,
+        all_round + others.len() - full,
         start.elapsed().as_secs_f64(),
         gaussians.len(),
         size = importance::VIEW_SIZE,
