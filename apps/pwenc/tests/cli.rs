@@ -6,6 +6,11 @@ fn pwenc(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_pwenc")).args(args).output().expect("pwenc runs")
 }
 
+/// A JSON file a run wrote.
+fn read_json(path: &str) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
 #[test]
 fn trains_evaluates_and_writes_outputs() {
     let tmp = tempfile::tempdir().unwrap();
@@ -27,7 +32,7 @@ fn trains_evaluates_and_writes_outputs() {
         &dir("report.json"),
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir("report.json")).unwrap()).unwrap();
+    let report = read_json(&dir("report.json"));
     assert_eq!(report["training"]["iterations"], 30);
     assert!(!report["device"].as_str().unwrap().is_empty(), "the report names what trained");
     assert_eq!(report["views"].as_array().unwrap().len(), 2);
@@ -62,8 +67,7 @@ fn trains_evaluates_and_writes_outputs() {
 fn a_captures_own_views_score_and_weigh_an_import() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
-    let json =
-        |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(dir(name)).unwrap()).unwrap() };
+    let json = |name: &str| read_json(&dir(name));
     let out = pwenc(&["generate-scene", &dir("scene"), "--width", "48", "--height", "36", "--views", "9"]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let train = [&dir("scene"), "--base", "3dgs", "--no-wrapper", "--iters", "10", "--export-ply", &dir("model.ply")];
@@ -110,7 +114,7 @@ fn a_build_without_the_gpu_feature_trains_on_the_cpu() {
     let common = ["--base", "3dgs", "--no-wrapper", "--iters", "2"];
     let out = pwenc(&[&[dir("scene").as_str(), "--report", &dir("r.json")][..], &common[..]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(dir("r.json")).unwrap()).unwrap();
+    let report = read_json(&dir("r.json"));
     assert_eq!(report["device"], "CPU (Burn flex backend)");
     let out = pwenc(&[&[dir("scene").as_str(), "--device", "gpu", "-o", &dir("s.pwb")][..], &common[..]].concat());
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -184,7 +188,7 @@ fn compresses_an_imported_ply() {
         &path("report.json"),
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(path("report.json")).unwrap()).unwrap();
+    let report = read_json(&path("report.json"));
     let bytes = std::fs::read(path("out.pwb")).unwrap();
     assert_eq!(report["stream"]["bytes"].as_u64().unwrap(), bytes.len() as u64);
     assert_eq!(report["orbit_psnr"].as_array().unwrap().len(), 2);
@@ -208,7 +212,7 @@ fn compresses_an_imported_ply() {
     ];
     let out = pwenc(&[&args[..], &["--report", &path("half.json")]].concat());
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&std::fs::read(path("half.json")).unwrap()).unwrap();
+    let report = read_json(&path("half.json"));
     let half = std::fs::read(path("half.pwb")).unwrap().len();
     assert!(half <= bytes.len() / 2 && half + 200 > bytes.len() / 2, "{half} bytes for a target of {target}");
     let pruned = report["stream"]["pruned_to_fit"].as_u64().unwrap();
@@ -305,8 +309,7 @@ fn a_closed_standard_output_loses_nothing() {
 fn compares_a_model_with_a_reference_on_an_orbit() {
     let tmp = tempfile::tempdir().unwrap();
     let path = |name: &str| tmp.path().join(name).to_str().unwrap().to_string();
-    let json =
-        |name: &str| -> serde_json::Value { serde_json::from_slice(&std::fs::read(path(name)).unwrap()).unwrap() };
+    let json = |name: &str| read_json(&path(name));
     let mut rng = pwgs_core::random::SplitMix64(8);
     let model = pwgs_core::random::random_gaussians(&mut rng, 600, 1, [-4.0, -2.5]);
     pwgs_core::ply::write_gaussians(std::path::Path::new(&path("in.ply")), &model).unwrap();

@@ -30,10 +30,11 @@ pub const VIEW_SIZE: u32 = 512;
 /// long as its 57 class views of [`VIEW_SIZE`] alone did.
 pub const OTHER_VIEW_SIZE: u32 = 256;
 /// Most pixels an import's [`Importance`] renders, whatever the up direction (the 98 directions at
-/// [`VIEW_SIZE`], at most [`MAX_CAPTURE_VIEWS`] of a capture, the 26 closer ones at
-/// [`OTHER_VIEW_SIZE`]): what bounds an import's work.
-pub const MAX_RENDERED_PIXELS: u64 = (98 + MAX_CAPTURE_VIEWS as u64) * (VIEW_SIZE as u64 * VIEW_SIZE as u64)
-    + 26 * (OTHER_VIEW_SIZE as u64 * OTHER_VIEW_SIZE as u64);
+/// [`VIEW_SIZE`], the 26 closer ones at [`OTHER_VIEW_SIZE`]): what bounds an import's work.
+/// With a capture's views (`--views`) it renders at most [`MAX_CAPTURE_VIEWS`] more of at most
+/// [`VIEW_SIZE`] squared.
+pub const MAX_RENDERED_PIXELS: u64 =
+    98 * (VIEW_SIZE as u64 * VIEW_SIZE as u64) + 26 * (OTHER_VIEW_SIZE as u64 * OTHER_VIEW_SIZE as u64);
 /// Most classes: 0 (the reference) to 6 (steps 64 times coarser, positions 6 levels coarser;
 /// classes that far down code guitar about 1.6% smaller at equal PSNR at quality 10 than
 /// stopping at 16 times).

@@ -1,7 +1,7 @@
 //! `pwenc compare`: how closely a model in another form (a splat file in any format `--from`
 //! reads, or a pwgs stream) renders like a reference model, on an orbit of views around the
-//! reference or on the views of the capture it was trained on. This is how streams are compared with other formats (SPZ, SOG, compressed PLY)
-//! at equal cameras; the report has the layout `pwbench` reads (the file's size as the
+//! reference or on the views of the capture it was trained on. This is how streams are
+//! compared with other formats (SPZ, SOG, compressed PLY) at equal cameras; the report has the layout `pwbench` reads (the file's size as the
 //! stream's, mean and per-view scores), so formats and qualities plot as RD curves.
 
 use std::path::PathBuf;
@@ -38,7 +38,7 @@ pub struct CompareJob {
     pub views: Option<SceneViews>,
     pub background: [f32; 3],
     /// Metrics besides PSNR and SSIM, and where the renders and their ground truth go
-    /// (`<dir>/orbit_NNN.png`, `<dir>/gt/orbit_NNN.png`).
+    /// (`<dir>/orbit_NNN.png`, `<dir>/gt/orbit_NNN.png`; named after the images with `views`).
     pub eval: EvalOptions,
     pub report: Option<PathBuf>,
     pub times: CodingTimes,
