@@ -35,6 +35,26 @@ pub fn choose_source(scene_dir: &Path, base: &str, downscale: u32) -> Result<Ima
     ))
 }
 
+/// The smallest downscale whose images a scene stores as they are: 1 when it has a `base` folder
+/// (or none of `base_N`, whose loader then says what is missing), else the smallest `N` of its
+/// `base_N` folders. For callers that need the cameras only, at any size: a capture shipped with
+/// `images_4` and `images_8` alone (LLFF's fern) has no views at downscale 1.
+pub fn stored_downscale(scene_dir: &Path, base: &str) -> u32 {
+    if scene_dir.join(base).is_dir() {
+        return 1;
+    }
+    let Ok(entries) = std::fs::read_dir(scene_dir) else { return 1 };
+    let prefix = format!("{base}_");
+    entries
+        .filter_map(|entry| {
+            let entry = entry.ok()?;
+            let factor = entry.file_name().to_str()?.strip_prefix(&prefix)?.parse::<u32>().ok()?;
+            (factor >= 1 && entry.path().is_dir()).then_some(factor)
+        })
+        .min()
+        .unwrap_or(1)
+}
+
 /// Image files in a folder (png, jpg, jpeg; any case), sorted by name.
 pub fn list_images(folder: &Path) -> Result<Vec<PathBuf>, DatasetError> {
     let entries = std::fs::read_dir(folder).map_err(|e| DatasetError::io(folder, e))?;
@@ -128,5 +148,19 @@ mod tests {
         let s = choose_source(dir.path(), "images", 3).unwrap();
         assert_eq!((s.folder, s.extra_factor), (dir.path().join("images"), 3));
         assert!(choose_source(dir.path(), "pictures", 1).is_err());
+    }
+
+    #[test]
+    fn stored_downscale_is_the_largest_images_a_scene_has() {
+        let dir = tempfile::tempdir().unwrap();
+        assert_eq!(stored_downscale(dir.path(), "images"), 1, "no folder: the loader names it");
+        for name in ["images_8", "images_4", "images_x", "images_0"] {
+            std::fs::create_dir(dir.path().join(name)).unwrap();
+        }
+        std::fs::write(dir.path().join("images_2"), b"a file, not a folder").unwrap();
+        assert_eq!(stored_downscale(dir.path(), "images"), 4);
+        assert_eq!(choose_source(dir.path(), "images", 4).unwrap().extra_factor, 1);
+        std::fs::create_dir(dir.path().join("images")).unwrap();
+        assert_eq!(stored_downscale(dir.path(), "images"), 1);
     }
 }

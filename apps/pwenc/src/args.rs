@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Args, CommandFactory, ValueEnum};
 use pwgs_codec::stream::anchor_context::MAX_LEVELS;
-use pwgs_dataset::{Dataset, LoadOptions, SceneViews, ViewSplit, load_scene};
+use pwgs_dataset::{Dataset, LoadOptions, SceneViews, ViewSplit, images, load_scene};
 use pwgs_encoder::anchor::quantize::AnchorSteps;
 use pwgs_encoder::anchor::train::ANCHOR_STAGE_TWO_LR_SCALE;
 use pwgs_encoder::metrics::evaluate::EvalOptions;
@@ -232,7 +232,11 @@ impl EncodeArgs {
             orbit: i.orbit.map(|views| Orbit::ring(views, i.up, i.orbit_size)),
             orbit_renders: i.orbit_renders.clone(),
             up: i.up,
-            capture: i.views.clone().map(|scene| SceneViews { scene, split: ViewSplit::All, downscale: 1 }),
+            capture: i.views.clone().map(|scene| {
+                // The import resizes every capture view to its own size: any stored images do.
+                let downscale = images::stored_downscale(&scene, "images");
+                SceneViews { scene, split: ViewSplit::All, downscale }
+            }),
             tools: i.tools(self.target_bytes.is_some()),
         }
     }
