@@ -79,7 +79,7 @@ fn sh_bands_stay_as_the_model_has_them() {
     assert!(with_bands.sh.chunks_exact(k).any(|c| c[3..].iter().any(|&v| v != 0.0)));
     let mut without = with_bands.clone();
     without.sh.chunks_exact_mut(k).for_each(|c| c[3..].fill(0.0));
-    for g in [&with_bands, &without] {
+    for (g, degree_zero) in [(&with_bands, false), (&without, true)] {
         let (cameras, options, importance, context) = views_of(g);
         let settings = QuantizerSettings::for_quality(8);
         let coding = pruning(&settings, &importance);
@@ -89,6 +89,6 @@ fn sh_bands_stay_as_the_model_has_them() {
         let moved = pairs().filter(|(a, b)| a[..3] != b[..3]).count();
         assert!(moved > 100, "the DC colours move ({moved} of 400)");
         let stream = compress_to_size(&shaped, coding, &context, None, usize::MAX).unwrap();
-        assert_eq!(stream.decoded.header.sh_degree == 0, std::ptr::eq(g, &without));
+        assert_eq!(stream.decoded.header.sh_degree == 0, degree_zero);
     }
 }

@@ -123,8 +123,6 @@ struct ShapeFit<'a> {
     model: Gaussians,
     views: (&'a [Camera], &'a RenderOptions, &'a [RgbImage]),
     settings: &'a QuantizerSettings,
-    /// The colours' rate; the bands above the DC terms have none.
-    dc_rate: f32,
     scales: SliceAdam,
     rotations: SliceAdam,
     opacities: SliceAdam,
@@ -137,14 +135,6 @@ struct ShapeFit<'a> {
 impl<'a> ShapeFit<'a> {
     fn new(model: Gaussians, coding: Coding<'a>, views: (&'a [Camera], &'a RenderOptions, &'a [RgbImage])) -> Self {
         let s = coding.settings;
-        // The view-dependent bands stay: fitted view by view from all round, they chase each
-        // view's colours and the model diverges. Fox (SH degree 3) at quality 7, effort 6: with
-        // bands 1-3 refitted too the views fell from 44.07 dB (the first epoch's mean) to 34.41
-        // dB in the third epoch and ended at 37.90 dB; with them held, 46.89 -> 43.90 -> 45.67
-        // dB, and the stream 674,521 bytes at 41.08 / 40.19 dB on the orbit / from below
-        // against 674,993 bytes at 40.55 / 39.58 dB. (A band a model leaves at 0, as guitar's
-        // PLY does, would also cost the stream a whole block for small gains.)
-        let dc_rate = STEP_FRACTION * s.dc_step;
         Self {
             scales: SliceAdam::new(model.len() * 3),
             rotations: SliceAdam::new(model.len() * 4),
@@ -153,7 +143,6 @@ impl<'a> ShapeFit<'a> {
             model,
             views,
             settings: s,
-            dc_rate,
             order: SplitMix64(ORDER_SEED),
             step: 0,
             mse_per_epoch: Vec::new(),
@@ -188,7 +177,14 @@ impl<'a> ShapeFit<'a> {
             self.rotations.step(model.rotations.as_flattened_mut(), grads.rotations.as_flattened(), rotations, step);
             let opacities = free(1, STEP_FRACTION * s.opacity_step);
             self.opacities.step(&mut model.opacity_logits, &grads.opacity_logits, opacities, step);
-            let dc_rate = self.dc_rate;
+            // The view-dependent bands stay: fitted view by view from all round, they chase each
+            // view's colours and the model diverges. Fox (SH degree 3) at quality 7, effort 6: with
+            // bands 1-3 refitted too the views fell from 44.07 dB (the first epoch's mean) to 34.41
+            // dB in the third epoch and ended at 37.90 dB; with them held, 46.89 -> 43.90 -> 45.67
+            // dB, and the stream 674,521 bytes at 41.08 / 40.19 dB on the orbit / from below
+            // against 674,993 bytes at 40.55 / 39.58 dB. (A band a model leaves at 0, as guitar's
+            // PLY does, would also cost the stream a whole block for small gains.)
+            let dc_rate = STEP_FRACTION * s.dc_step;
             self.sh.step(&mut model.sh, &grads.sh, |i| if i % k < 3 { dc_rate } else { 0.0 }, step);
         }
         self.mse_per_epoch.push(errors / order.len().max(1) as f64);
