@@ -33,11 +33,12 @@ fn refitted_shapes_render_closer_at_the_same_positions() {
     // With faint Gaussians pruned: the gaps they leave are what the kept ones can fill.
     let settings = QuantizerSettings::for_quality(8);
     let coding = pruning(&settings, &importance);
-    let (shaped, outcome) = refit_shapes(&g, coding, &context, (&cameras, &options), 6).unwrap();
-    // Six epochs, then two more after each of the first two thirds of the shapes is rounded.
-    assert_eq!(outcome.mse_per_epoch.len(), 10);
-    // Measured: 8.3e-5 -> 6.0e-5 over the six epochs.
-    let (first, last) = (outcome.mse_per_epoch[0], outcome.mse_per_epoch[5]);
+    let (shaped, outcome) = refit_shapes(&g, coding, &context, (&cameras, &options), 18).unwrap();
+    // 18 epochs (of two views: at the refit's rate, 6 epochs move this model about 15%), then two
+    // more after each of the first two thirds of the shapes is rounded.
+    assert_eq!(outcome.mse_per_epoch.len(), 22);
+    // Measured: 8.5e-5 -> 5.9e-5 over the 18 epochs.
+    let (first, last) = (outcome.mse_per_epoch[0], outcome.mse_per_epoch[17]);
     assert!(last < 0.8 * first, "{outcome:?}");
     assert_eq!(shaped.means, g.means, "the model's own positions go to the quantizer");
     // All kept Gaussians but every third rounded to what the stream holds (none went invisible
@@ -59,8 +60,8 @@ fn refitted_shapes_render_closer_at_the_same_positions() {
         let score = |s: &pwgs_encoder::plain::compress::Compressed| {
             psnr(&render(s.decoded.scene.plain_gaussians().unwrap(), camera, &options), &truth)
         };
-        // Measured: 37.81 -> 39.06 dB and 40.21 -> 41.21 dB with the shapes refitted (and two
-        // thirds of them rounded in turns); 41.50 -> 41.74 dB and 44.01 -> 44.29 dB for the
+        // Measured: 37.81 -> 38.89 dB and 40.21 -> 41.09 dB with the shapes refitted (and two
+        // thirds of them rounded in turns); 41.50 -> 41.73 dB and 44.01 -> 44.29 dB for the
         // colours refitted after them.
         let (plain, refit) = (score(&plain), score(&refit));
         assert!(refit > plain + 0.5, "shapes: {plain:.2} dB -> {refit:.2} dB");
