@@ -180,13 +180,12 @@ impl<'a> ShapeFit<'a> {
             let opacities = free(1, STEP_FRACTION * s.opacity_step);
             self.opacities.step(&mut model.opacity_logits, &grads.opacity_logits, opacities, step);
             // The view-dependent bands stay: fitted view by view from all round, they chase each
-            // view's colours and the model diverges. Fox (SH degree 3) at quality 7, effort 6, at a rate of
-            // 0.03: with
-            // bands 1-3 refitted too the views fell from 44.07 dB (the first epoch's mean) to 34.41
-            // dB in the third epoch and ended at 37.90 dB; with them held, 46.89 -> 43.90 -> 45.67
-            // dB, and the stream 674,521 bytes at 41.08 / 40.19 dB on the orbit / from below
-            // against 674,993 bytes at 40.55 / 39.58 dB. (A band a model leaves at 0, as guitar's
-            // PLY does, would also cost the stream a whole block for small gains.)
+            // view's colours and the model diverges. Fox (SH degree 3) at quality 7, effort 6, at
+            // a rate of 0.03: with bands 1-3 refitted too the views fell from 44.07 dB (the first
+            // epoch's mean) to 34.41 dB in the third epoch and ended at 37.90 dB; with them held,
+            // 46.89 -> 43.90 -> 45.67 dB, and the stream 674,521 bytes at 41.08 / 40.19 dB on the
+            // orbit / from below against 674,993 bytes at 40.55 / 39.58 dB. (A band a model leaves
+            // at 0, as guitar's PLY does, would also cost the stream a whole block for small gains.)
             let dc_rate = STEP_FRACTION * s.dc_step;
             self.sh.step(&mut model.sh, &grads.sh, |i| if i % k < 3 { dc_rate } else { 0.0 }, step);
         }
