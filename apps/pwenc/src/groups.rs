@@ -58,9 +58,8 @@ pub(crate) struct ImportArgs {
     ///
     /// Each level is a fixed set of the tools below: 0 uniform steps, 1 importance classes, 2
     /// with pruning, 3 to 5 with a colour refit (2 and 8 iterations, then 8 rounded in
-    /// quarters), 6 to 9 with a shape refit too (6, 12, 12 and 24 epochs; 8 and 9 with 16
-    /// colour iterations). The options below add their tool to the level's. With
-    /// --target-bytes the refits are left out.
+    /// quarters), 6 to 9 with a shape refit too (1, 2, 3 and 6 epochs). The options below add
+    /// their tool to the level's. With --target-bytes the refits are left out.
     #[arg(long, default_value_t = DEFAULT_EFFORT, value_name = "0..9",
           value_parser = clap::value_parser!(u8).range(0..=MAX_EFFORT as i64))]
     pub(crate) effort: u8,
