@@ -268,6 +268,9 @@ fn plan_coding(
         );
         tools = tools.without_refits();
     }
+    if tools.refit_shapes.is_some() {
+        plan.settings.prune_budget *= REFIT_BUDGET_FACTOR;
+    }
     let coding = Coding { settings: &plan.settings, weights: Some(weights), prune_costs };
     if let Some(epochs) = tools.refit_shapes {
         let start = Instant::now();
@@ -335,6 +338,10 @@ fn phase_bar(len: usize, what: &str) -> ProgressBar {
     bar.set_message(what.to_string());
     bar
 }
+
+/// With `--refit-shapes` the prune budget (the step search's, or the quality level's) is this
+/// much larger: the refitted Gaussians around a pruned one fill its gap.
+const REFIT_BUDGET_FACTOR: f32 = 2.0;
 
 #[cfg(test)]
 mod tests {
