@@ -15,14 +15,6 @@
 //! [`crate::plain::colour_refit`], which must then fit the input's renders, not the refitted
 //! model's (at the input's positions that model no longer renders like the input). Together they
 //! reach 58.25 dB on biker's orbit against 58.00 dB for the colours alone.
-//!
-//! With the refit an import prunes twice the quality's budget (the refitted neighbours fill the
-//! gaps; `REFIT_BUDGET_FACTOR` in the import session). On the models without SH bands that
-//! trades the views below the horizon for the orbit above it: with 2 epochs guitar at quality 10
-//! and biker at 11 code 2.8% and 1.1% smaller at equal PSNR on an orbit above the horizon but
-//! 5.6% and 2.9% larger on one 35 degrees below than at the budget itself; on fox and fern (SH
-//! degree 3, quality 7) the budget itself codes 2-10% larger on the orbit, from below and closer
-//! in alike.
 
 use pwgs_core::camera::Camera;
 use pwgs_core::gaussians::Gaussians;
